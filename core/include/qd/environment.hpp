@@ -1,0 +1,53 @@
+// Environment: runs policies and returns their traces.
+//
+// Contract
+//  * Stateless between rollouts: the same policy parameters (and episode seed) give the same
+//    trace whatever worker, thread or order runs them. rollout() is const and must be safe to call
+//    concurrently from several threads on disjoint index ranges.
+//  * Expected per-episode failures (NaN action, diverged physics) are status values in the Trace,
+//    never exceptions. An exception from rollout() is a bug and ends the run.
+//  * One virtual call per batch range: the evaluator hands each worker a range of rows.
+#pragma once
+
+#include <qd/component.hpp>
+#include <qd/export.hpp>
+#include <qd/policy.hpp>
+#include <qd/types.hpp>
+
+#include <cstdint>
+#include <ostream>
+#include <string>
+
+namespace qd {
+
+struct EnvironmentInfo {
+  int observation_size = 0;
+  int action_size = 0;
+  int max_steps = 0;
+  std::string default_descriptor;  // descriptor component used when the experiment names none
+};
+
+// A batch of rollouts: rows [begin, end) of `params`, each with its own episode seed.
+struct RolloutBatch {
+  const PolicyShape* shape = nullptr;
+  const Matrix* params = nullptr;            // N × P
+  const std::uint64_t* episode_seeds = nullptr;  // N seeds (deterministic environments ignore them)
+  std::size_t begin = 0;
+  std::size_t end = 0;
+};
+
+class QD_EXPORT Environment : public Component {
+ public:
+  ~Environment() override;
+
+  virtual EnvironmentInfo info() const = 0;
+
+  // Fills traces[i] for every i in [batch.begin, batch.end). Thread-safe (see above).
+  virtual void rollout(const RolloutBatch& batch, Trace* traces) const = 0;
+
+  // Draws the scene and one rollout's trace as a standalone SVG document. Returns false when the
+  // environment cannot draw.
+  virtual bool draw_svg(const Trace& trace, std::ostream& out) const;
+};
+
+}  // namespace qd

@@ -1,0 +1,97 @@
+// The plugin contract: what a plugin library exports and what the host checks before using it.
+//
+// A plugin library exports exactly one symbol, the Boost.DLL alias `qd_plugin_entry_v1`, a
+// function returning a pointer to a static PluginInfo. The host checks, in order: the alias is
+// present; abi_version == kPluginAbiVersion; info_size == sizeof(PluginInfo); the build fingerprint
+// equals the core's; the file is named qd_<plugin_name>.so; component names are unique; each
+// created object has the dynamic type its kind promises. Objects made by a plugin keep its library
+// loaded; libraries are never unloaded during a run.
+//
+// Plugin authors write:
+//
+//   #include <qd/plugin.hpp>
+//   class MyMutator final : public qd::Mutator { public: MyMutator(const qd::Config&, const qd::BuildContext&); ... };
+//   constexpr qd::ParamSpec kMyParams[] = {qd::param_float("sigma", "0.1", 0.0, qd::kUnbounded, "step size")};
+//   QD_PLUGIN("my_plugin", "1.0.0",
+//             qd::component<MyMutator>(qd::Kind::kMutator, "my-mutator", "One-line summary.", kMyParams))
+//
+// READ ME if you change anything under core/include/qd/: bump kPluginAbiVersion.
+#pragma once
+
+#include <qd/component.hpp>
+#include <qd/config.hpp>
+#include <qd/descriptor.hpp>
+#include <qd/environment.hpp>
+#include <qd/export.hpp>
+#include <qd/mutator.hpp>
+#include <qd/representation.hpp>
+#include <qd/version.hpp>
+
+#ifndef BOOST_DLL_USE_STD_FS
+#define BOOST_DLL_USE_STD_FS  // plugins and host must agree; without it Boost.System symbols leak
+#endif
+#include <boost/dll/alias.hpp>
+
+#include <cstdint>
+
+namespace qd {
+
+inline constexpr std::uint32_t kPluginAbiVersion = 1;
+
+enum class Kind : std::uint32_t { kEnvironment = 1, kDescriptor = 2, kRepresentation = 3, kMutator = 4 };
+QD_EXPORT const char* to_string(Kind kind) noexcept;
+
+// Factories return a raw pointer only at this boundary; the host wraps it at once in an owner
+// that keeps the library loaded. May throw qd::ConfigError (or anything: the host reports it).
+using CreateFn = Component* (*)(const Config&, const BuildContext&);
+
+struct ComponentInfo {
+  Kind kind;
+  const char* name;
+  const char* summary;
+  const ParamSpec* params;
+  std::uint32_t param_count;
+  CreateFn create;
+};
+
+// Layout frozen for a given abi_version; abi_version must stay the first field.
+struct PluginInfo {
+  std::uint32_t abi_version;
+  std::uint32_t info_size;
+  const char* build_fingerprint;
+  const char* plugin_name;
+  const char* plugin_version;
+  std::uint32_t component_count;
+  const ComponentInfo* components;
+};
+
+using PluginEntryFn = const PluginInfo* (*)();
+
+template <class T, std::size_t N>
+ComponentInfo component(Kind kind, const char* name, const char* summary, const ParamSpec (&params)[N]) {
+  return {kind, name, summary, params, static_cast<std::uint32_t>(N),
+          [](const Config& c, const BuildContext& b) -> Component* { return new T(c, b); }};
+}
+template <class T>
+ComponentInfo component(Kind kind, const char* name, const char* summary) {
+  return {kind, name, summary, nullptr, 0u,
+          [](const Config& c, const BuildContext& b) -> Component* { return new T(c, b); }};
+}
+
+}  // namespace qd
+
+#define QD_PLUGIN(NAME, VERSION, ...)                                                                    \
+  namespace {                                                                                            \
+  const ::qd::PluginInfo* qd_plugin_entry_impl() {                                                       \
+    static const ::qd::ComponentInfo components[] = {__VA_ARGS__};                                      \
+    static const ::qd::PluginInfo info{::qd::kPluginAbiVersion,                                          \
+                                       static_cast<std::uint32_t>(sizeof(::qd::PluginInfo)),             \
+                                       QD_BUILD_FINGERPRINT,                                             \
+                                       NAME,                                                             \
+                                       VERSION,                                                          \
+                                       static_cast<std::uint32_t>(sizeof(components) / sizeof(components[0])), \
+                                       components};                                                      \
+    return &info;                                                                                        \
+  }                                                                                                      \
+  }                                                                                                      \
+  BOOST_DLL_ALIAS(qd_plugin_entry_impl, qd_plugin_entry_v1)

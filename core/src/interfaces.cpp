@@ -1,0 +1,82 @@
+// Key functions of the interfaces (pinning their type information in libqd_core) and defaults.
+#include <qd/component.hpp>
+#include <qd/descriptor.hpp>
+#include <qd/environment.hpp>
+#include <qd/errors.hpp>
+#include <qd/mutator.hpp>
+#include <qd/plugin.hpp>
+#include <qd/representation.hpp>
+
+#include <cmath>
+
+namespace qd {
+
+Component::~Component() = default;
+Environment::~Environment() = default;
+Descriptor::~Descriptor() = default;
+Representation::~Representation() = default;
+Mutator::~Mutator() = default;
+
+bool Environment::draw_svg(const Trace&, std::ostream&) const { return false; }
+
+void Representation::decoder_vjp(const Matrix& z, const Matrix& v, Matrix& out) const {
+  QD_CHECK(z.rows() == v.rows(), "decoder_vjp: z and v must have the same number of rows");
+  std::vector<Matrix> jac;
+  decoder_jacobians(z, jac);
+  out.resize(z.rows(), z.cols());
+  for (Eigen::Index i = 0; i < z.rows(); ++i) out.row(i).noalias() = v.row(i) * jac[static_cast<std::size_t>(i)];
+}
+
+void Representation::reconstruction_errors(const Matrix& theta, Vector& errors) const {
+  Matrix z, rec;
+  encode(theta, z);
+  decode(z, rec);
+  errors = (theta - rec).rowwise().norm();
+}
+
+void Mutator::begin_loop(const LoopContext&) {}
+void Mutator::feedback(const Feedback&) {}
+void Mutator::save(std::ostream&) const {}
+void Mutator::load(std::istream&) {}
+
+void Offspring::reset(std::size_t count, std::size_t params, std::size_t latent_size) {
+  theta.resize(static_cast<Eigen::Index>(count), static_cast<Eigen::Index>(params));
+  latent.resize(static_cast<Eigen::Index>(latent_size ? count : 0), static_cast<Eigen::Index>(latent_size));
+  has_latent.assign(count, 0);
+  mixing_ratio = std::nan("");
+  metrics.clear();
+}
+
+const char* to_string(EvalStatus status) noexcept {
+  switch (status) {
+    case EvalStatus::kOk: return "ok";
+    case EvalStatus::kInvalidAction: return "invalid-action";
+    case EvalStatus::kDiverged: return "diverged";
+    case EvalStatus::kFailed: return "failed";
+  }
+  return "unknown";
+}
+
+const char* to_string(Kind kind) noexcept {
+  switch (kind) {
+    case Kind::kEnvironment: return "environment";
+    case Kind::kDescriptor: return "descriptor";
+    case Kind::kRepresentation: return "representation";
+    case Kind::kMutator: return "mutator";
+  }
+  return "unknown";
+}
+
+const char* to_string(ParamType type) noexcept {
+  switch (type) {
+    case ParamType::kBool: return "bool";
+    case ParamType::kInteger: return "integer";
+    case ParamType::kFloat: return "float";
+    case ParamType::kString: return "string";
+    case ParamType::kIntegerList: return "integer list";
+    case ParamType::kFloatList: return "float list";
+  }
+  return "unknown";
+}
+
+}  // namespace qd

@@ -1,0 +1,59 @@
+#include <qd/errors.hpp>
+#include <qd/policy.hpp>
+
+#include <cmath>
+
+namespace qd {
+
+PolicyShape::PolicyShape(int inputs, std::vector<int> hidden, int outputs) : hidden_(std::move(hidden)) {
+  QD_CHECK(inputs > 0 && outputs > 0, "policy needs at least one input and one output");
+  sizes_.push_back(inputs);
+  for (int h : hidden_) {
+    QD_CHECK(h > 0, "hidden layer sizes must be positive");
+    sizes_.push_back(h);
+  }
+  sizes_.push_back(outputs);
+  offsets_.push_back(0);
+  for (std::size_t l = 0; l + 1 < sizes_.size(); ++l)
+    offsets_.push_back(offsets_.back() + static_cast<std::size_t>(sizes_[l] + 1) * static_cast<std::size_t>(sizes_[l + 1]));
+}
+
+Policy::Policy(const PolicyShape& shape) : shape_(shape) {
+  for (int l = 0; l < shape_.layers(); ++l) {
+    weights_t_.emplace_back(shape_.layer_outputs(l), shape_.layer_inputs(l));
+    biases_.emplace_back(shape_.layer_outputs(l));
+    activations_.emplace_back(shape_.layer_outputs(l));
+  }
+}
+
+void Policy::load(const double* theta) {
+  for (int l = 0; l < shape_.layers(); ++l) {
+    const int n_in = shape_.layer_inputs(l);
+    const int n_out = shape_.layer_outputs(l);
+    const double* block = theta + shape_.layer_offset(l);
+    auto& w = weights_t_[static_cast<std::size_t>(l)];
+    // Block is (n_in + 1) × n_out row-major: element (r, c) at r * n_out + c.
+    for (int r = 0; r < n_in; ++r)
+      for (int c = 0; c < n_out; ++c) w(c, r) = static_cast<float>(block[r * n_out + c]);
+    auto& b = biases_[static_cast<std::size_t>(l)];
+    for (int c = 0; c < n_out; ++c) b(c) = static_cast<float>(block[n_in * n_out + c]);
+  }
+}
+
+const float* Policy::act(const float* observation) {
+  Eigen::Map<const Eigen::VectorXf> x(observation, shape_.inputs());
+  const int last = shape_.layers() - 1;
+  for (int l = 0; l <= last; ++l) {
+    auto& y = activations_[static_cast<std::size_t>(l)];
+    const auto& w = weights_t_[static_cast<std::size_t>(l)];
+    if (l == 0)
+      y.noalias() = w * x;
+    else
+      y.noalias() = w * activations_[static_cast<std::size_t>(l - 1)];
+    y += biases_[static_cast<std::size_t>(l)];
+    if (l != last) y = y.array().tanh();
+  }
+  return activations_[static_cast<std::size_t>(last)].data();
+}
+
+}  // namespace qd
