@@ -1,1 +1,236 @@
-int main(){return 0;}
+// qdrun: runs a Quality-Diversity experiment described by a TOML file.
+//
+// Exit codes: 0 success, 2 bad input (file, TOML, configuration, plugins, output directory),
+// 1 internal failure.
+#include "progress.hpp"
+#include "runtime/experiment.hpp"
+#include "runtime/registry.hpp"
+#include "runtime/run.hpp"
+
+#include <qd/errors.hpp>
+#include <qd/version.hpp>
+
+#include <boost/program_options.hpp>
+
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+#include <map>
+#include <unistd.h>
+
+namespace po = boost::program_options;
+namespace fs = std::filesystem;
+using namespace qd;
+using namespace qd::runtime;
+
+namespace {
+
+constexpr int kExitOk = 0, kExitFailure = 1, kExitBadInput = 2;
+
+struct Cli {
+  std::vector<std::string> experiments;
+  std::vector<std::string> sets;
+  std::vector<std::string> plugin_paths;
+  std::string output, resume, describe;
+  long long seed = -1;
+  int workers = 0;
+  int stop_after_loop = -1;
+  bool quiet = false, list = false, version = false;
+};
+
+std::vector<std::string> split_path_list(const char* text) {
+  std::vector<std::string> out;
+  if (!text) return out;
+  std::string s = text;
+  for (std::size_t pos = 0;;) {
+    const std::size_t c = s.find(':', pos);
+    const std::string part = s.substr(pos, c == std::string::npos ? std::string::npos : c - pos);
+    if (!part.empty()) out.push_back(part);
+    if (c == std::string::npos) break;
+    pos = c + 1;
+  }
+  return out;
+}
+
+// Search order, first hit wins: --plugin-path, QD_PLUGIN_PATH, [plugins] path, the install
+// location next to the executable, the build tree.
+void setup_registry(Registry& reg, const Cli& cli, const std::vector<std::string>& from_file) {
+  for (const auto& p : cli.plugin_paths) reg.add_search_dir(p);
+  for (const auto& p : split_path_list(std::getenv("QD_PLUGIN_PATH"))) reg.add_search_dir(p);
+  for (const auto& p : from_file) reg.add_search_dir(p);
+  reg.add_search_dir(installed_plugin_dir());
+  reg.add_search_dir(build_tree_plugin_dir());
+  reg.discover();
+}
+
+int list_components(const Registry& reg) {
+  for (Kind kind : {Kind::kEnvironment, Kind::kDescriptor, Kind::kRepresentation, Kind::kMutator}) {
+    std::printf("%ss:\n", to_string(kind));
+    for (const auto& c : reg.components()) {
+      if (c.info->kind != kind) continue;
+      std::printf("  %-20s %s\n  %-20s   (plugin %s %s, %s)\n", c.info->name, c.info->summary ? c.info->summary : "", "",
+                  c.plugin->info->plugin_name, c.plugin->info->plugin_version, c.plugin->path.c_str());
+    }
+  }
+  if (!reg.rejected().empty()) {
+    std::printf("rejected libraries:\n");
+    for (const auto& r : reg.rejected()) std::printf("  %s\n", r.reason.c_str());
+  }
+  std::printf("plugin search path:\n");
+  for (const auto& d : reg.search_dirs()) std::printf("  %s\n", d.c_str());
+  return kExitOk;
+}
+
+int describe(const Registry& reg, const std::string& name) {
+  for (const auto& t : core_tables()) {
+    if (name == t.name) {
+      std::printf("[%s] (core)\n%s", t.name, describe_params(t.params, t.count).c_str());
+      return kExitOk;
+    }
+  }
+  const ComponentEntry* e = reg.find(name);
+  if (!e) {
+    std::string known;
+    for (const auto& t : core_tables()) known += std::string(known.empty() ? "" : ", ") + t.name;
+    for (const auto& c : reg.components()) known += ", " + std::string(c.info->name);
+    throw InputError("--describe: unknown component or table '" + name + "'; known: " + known);
+  }
+  std::printf("%s '%s': %s\n  plugin %s %s (%s)\nparameters (besides type = \"%s\"):\n%s", to_string(e->info->kind),
+              e->info->name, e->info->summary ? e->info->summary : "", e->plugin->info->plugin_name,
+              e->plugin->info->plugin_version, e->plugin->path.c_str(), e->info->name,
+              describe_params(e->info->params, e->info->param_count).c_str());
+  return kExitOk;
+}
+
+// Keys that may change when a run is resumed: budget and output only, never the algorithm.
+bool resumable_override(const std::string& assignment) {
+  const std::string key = assignment.substr(0, assignment.find('='));
+  return key == "experiment.loops" || key == "evaluation.workers" || key == "output.snapshot_every";
+}
+
+int run_one(const Cli& cli, const std::string& command_line) {
+  Document doc;
+  RunOptions opt;
+  if (!cli.resume.empty()) {
+    const fs::path cfg = fs::path(cli.resume) / "config.toml";
+    if (!fs::exists(cfg)) throw InputError(cli.resume + ": not a run directory (no config.toml)");
+    doc = Document::read(cfg);
+    for (const auto& s : cli.sets) {
+      if (!resumable_override(s))
+        throw InputError("--set " + s + ": only experiment.loops, evaluation.workers and output.snapshot_every may change when resuming");
+      doc.apply_override(s);
+    }
+    if (cli.seed >= 0 || !cli.output.empty()) throw InputError("--seed and --output cannot be combined with --resume");
+    opt.directory = cli.resume;
+  } else {
+    doc = Document::read(cli.experiments.front());
+    for (const auto& s : cli.sets) doc.apply_override(s);
+    if (cli.seed >= 0) doc.apply_override("experiment.seed=" + std::to_string(cli.seed));
+    if (!cli.output.empty()) doc.apply_override("output.dir=\"" + cli.output + "\"");
+  }
+  Registry reg;
+  setup_registry(reg, cli, doc.plugin_paths());
+  Experiment ex = resolve(doc, reg);
+  opt.workers = cli.workers;
+  opt.stop_after_loop = cli.stop_after_loop;
+  opt.command_line = command_line;
+  const bool terminal = ::isatty(STDERR_FILENO) != 0;
+  app::ProgressPrinter printer(cli.quiet, terminal, ex.settings.name + "/seed-" + std::to_string(ex.settings.seed));
+  opt.on_progress = [&](const Progress& p) { printer(p); };
+  Run run(std::move(ex), reg, std::move(opt));
+  if (!cli.resume.empty())
+    run.open_for_resume();
+  else
+    run.create_directory();
+  try {
+    const bool finished = run.run();
+    printer.finish();
+    if (!cli.quiet)
+      std::fprintf(stderr, "%s: %s (%zu elites, coverage %.4f)\n", finished ? "finished" : "stopped",
+                   run.directory().c_str(), run.archive().size(), run.archive().coverage());
+  } catch (...) {
+    printer.finish();
+    std::error_code ec;
+    if (fs::exists(run.directory(), ec)) {
+      try {
+        std::FILE* f = std::fopen((run.directory() / "status").c_str(), "w");
+        if (f) {
+          std::fputs("failed (the last checkpoint is intact; fix the cause and --resume)\n", f);
+          std::fclose(f);
+        }
+      } catch (...) {
+      }
+    }
+    throw;
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Cli cli;
+  po::options_description visible("qdrun EXPERIMENT.toml [options]\n\nOptions");
+  // clang-format off
+  visible.add_options()
+    ("help,h", "show this help")
+    ("version", po::bool_switch(&cli.version), "print the version and build fingerprint")
+    ("seed", po::value(&cli.seed), "override experiment.seed")
+    ("set", po::value(&cli.sets)->composing(), "override a setting: --set mutator.sigma=0.05 (repeatable)")
+    ("output,o", po::value(&cli.output), "root output directory (overrides output.dir)")
+    ("workers,j", po::value(&cli.workers), "evaluation threads (default: all cores; results do not depend on it)")
+    ("resume", po::value(&cli.resume), "continue the run in this run directory from its last checkpoint")
+    ("quiet,q", po::bool_switch(&cli.quiet), "print nothing but errors")
+    ("list", po::bool_switch(&cli.list), "list every available component with its plugin library and version")
+    ("describe", po::value(&cli.describe), "print the parameters of a component or core table (experiment, policy, output, evaluation)")
+    ("plugin-path", po::value(&cli.plugin_paths)->composing(), "extra plugin directory, searched first (repeatable)")
+    ("stop-after-loop", po::value(&cli.stop_after_loop), "stop cleanly after this loop's checkpoint (for time-sliced jobs)");
+  // clang-format on
+  po::options_description hidden;
+  hidden.add_options()("experiment", po::value(&cli.experiments)->composing(), "experiment file");
+  po::options_description all;
+  all.add(visible).add(hidden);
+  po::positional_options_description pos;
+  pos.add("experiment", -1);
+
+  std::string command_line;
+  for (int i = 0; i < argc; ++i) command_line += (i ? " " : "") + std::string(argv[i]);
+
+  try {
+    po::variables_map vm;
+    po::store(po::command_line_parser(argc, argv).options(all).positional(pos).run(), vm);
+    po::notify(vm);
+    if (vm.count("help")) {
+      std::cout << visible << "\nPlugins are searched in --plugin-path, QD_PLUGIN_PATH, [plugins] path,\n"
+                << "<prefix>/lib/qd/plugins and the build tree. See README.md.\n";
+      return kExitOk;
+    }
+    if (cli.version) {
+      std::printf("qdrun %s (git %s)\nfingerprint %s\n", version_string(), git_revision(), build_fingerprint());
+      return kExitOk;
+    }
+    if (cli.list || !cli.describe.empty()) {
+      Registry reg;
+      std::vector<std::string> from_file;
+      if (!cli.experiments.empty()) from_file = Document::read(cli.experiments.front()).plugin_paths();
+      setup_registry(reg, cli, from_file);
+      return cli.list ? list_components(reg) : describe(reg, cli.describe);
+    }
+    if (cli.workers < 0) throw InputError("--workers must be >= 0");
+    if (cli.resume.empty() && cli.experiments.size() != 1)
+      throw InputError(cli.experiments.empty() ? "no experiment file given (qdrun EXPERIMENT.toml; see --help)"
+                                               : "give one experiment file (or --resume RUN_DIR)");
+    if (!cli.resume.empty() && !cli.experiments.empty())
+      throw InputError("--resume takes the experiment from the run directory; do not also give an experiment file");
+    return run_one(cli, command_line);
+  } catch (const po::error& e) {
+    std::fprintf(stderr, "qdrun: error: %s (see qdrun --help)\n", e.what());
+    return kExitBadInput;
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "qdrun: error: %s\n", e.what());
+    return kExitBadInput;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "qdrun: internal failure: %s\n", e.what());
+    return kExitFailure;
+  }
+}

@@ -27,7 +27,7 @@ enum class ParamType : std::uint32_t {
   kFloatList = 5,
 };
 
-const char* to_string(ParamType type) noexcept;
+QD_EXPORT const char* to_string(ParamType type) noexcept;
 
 // One declared parameter. A plain aggregate so that plugins can keep a static array of them.
 // `default_value` is TOML value syntax ("0.1", "[32, 32]", "\"reference\"", "true").

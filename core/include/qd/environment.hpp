@@ -42,7 +42,8 @@ class QD_EXPORT Environment : public Component {
 
   virtual EnvironmentInfo info() const = 0;
 
-  // Fills traces[i] for every i in [batch.begin, batch.end). Thread-safe (see above).
+  // Fills traces[i] for every i in [batch.begin, batch.end): `traces` is indexed like the rows of
+  // batch.params (it points at the whole batch's array, not at traces[begin]). Thread-safe.
   virtual void rollout(const RolloutBatch& batch, Trace* traces) const = 0;
 
   // Draws the scene and one rollout's trace as a standalone SVG document. Returns false when the

@@ -28,7 +28,7 @@
 
 namespace qd {
 
-struct Offspring {
+struct QD_EXPORT Offspring {
   Matrix theta;                          // count × P
   Matrix latent;                         // count × LD (only when LD > 0)
   std::vector<std::uint8_t> has_latent;  // 1 where latent.row(i) is the offspring's origin z′

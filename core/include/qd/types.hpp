@@ -1,6 +1,8 @@
 // Value types shared by every interface.
 #pragma once
 
+#include <qd/export.hpp>
+
 #include <Eigen/Core>
 
 #include <cstdint>
@@ -23,7 +25,7 @@ enum class EvalStatus : std::uint8_t {
   kFailed = 3,         // the environment reported another per-episode failure (see message)
 };
 
-const char* to_string(EvalStatus status) noexcept;
+QD_EXPORT const char* to_string(EvalStatus status) noexcept;
 
 // A table of rows with a fixed number of columns, stored row-major. Used for the sub-sampled
 // trajectories that descriptors read.

@@ -1,0 +1,508 @@
+#include "runtime/experiment.hpp"
+
+#include <qd/errors.hpp>
+
+#include <toml++/toml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+namespace qd::runtime {
+namespace fs = std::filesystem;
+
+struct Document::Impl {
+  toml::table root;
+  fs::path file;
+};
+
+Document::Document() : impl(std::make_unique<Impl>()) {}
+Document::~Document() = default;
+Document::Document(Document&&) noexcept = default;
+Document& Document::operator=(Document&&) noexcept = default;
+
+namespace {
+
+std::string location(const toml::source_region& src) {
+  if (!src.path) return "<unknown>";
+  const std::string& p = *src.path;
+  if (p.rfind("--set", 0) == 0) return p;  // overrides name themselves
+  return p + ":" + std::to_string(src.begin.line) + ":" + std::to_string(src.begin.column);
+}
+
+std::string location(const toml::node& n) { return location(n.source()); }
+
+[[noreturn]] void fail_at(const toml::node& n, const std::string& msg) { throw InputError(location(n) + ": " + msg); }
+
+std::size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> prev(b.size() + 1), cur(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    cur[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j)
+      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+    std::swap(prev, cur);
+  }
+  return prev[b.size()];
+}
+
+std::string suggestion(const std::string& key, const std::vector<std::string>& known) {
+  std::string best;
+  std::size_t best_d = 3;
+  for (const auto& k : known) {
+    const std::size_t d = edit_distance(key, k);
+    if (d < best_d) best_d = d, best = k;
+  }
+  return best.empty() ? "" : " (did you mean '" + best + "'?)";
+}
+
+std::string join(const std::vector<std::string>& v) {
+  std::string s;
+  for (const auto& x : v) s += (s.empty() ? "" : ", ") + x;
+  return s.empty() ? "(none)" : s;
+}
+
+// Merges `over` into `base`: tables merge key by key, everything else is replaced.
+void deep_merge(toml::table& base, const toml::table& over) {
+  for (const auto& [k, v] : over) {
+    if (auto* sub = v.as_table()) {
+      if (auto* existing = base.get(k); existing && existing->is_table()) {
+        deep_merge(*existing->as_table(), *sub);
+        continue;
+      }
+    }
+    base.insert_or_assign(k, v);
+  }
+}
+
+toml::table parse_file(const fs::path& file, int depth) {
+  if (depth > 16) throw InputError(file.string() + ": includes nest more than 16 levels (a cycle?)");
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec)) throw InputError(file.string() + ": no such experiment file");
+  std::ifstream in(file);
+  if (!in) throw InputError(file.string() + ": cannot open experiment file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  toml::table t;
+  try {
+    t = toml::parse(ss.str(), file.string());
+  } catch (const toml::parse_error& e) {
+    throw InputError(location(e.source()) + ": malformed TOML: " + std::string(e.description()));
+  }
+  const toml::node* inc = t.get("include");
+  if (!inc) return t;
+  std::vector<std::string> includes;
+  if (inc->is_string()) {
+    includes.push_back(inc->as_string()->get());
+  } else if (inc->is_array()) {
+    for (const auto& x : *inc->as_array()) {
+      if (!x.is_string()) fail_at(x, "include entries must be strings (paths)");
+      includes.push_back(x.as_string()->get());
+    }
+  } else {
+    fail_at(*inc, "include must be a path or a list of paths");
+  }
+  toml::table merged;
+  for (const auto& rel : includes) {
+    fs::path p = fs::path(rel).is_absolute() ? fs::path(rel) : file.parent_path() / rel;
+    try {
+      deep_merge(merged, parse_file(p, depth + 1));
+    } catch (const InputError& e) {
+      throw InputError(std::string(e.what()) + " (included from " + location(*inc) + ")");
+    }
+  }
+  t.erase("include");
+  deep_merge(merged, t);
+  return merged;
+}
+
+// ---- Core schema --------------------------------------------------------------------------
+constexpr double kMaxInt = 9.0e15;
+const ParamSpec kExperimentParams[] = {
+    param_string("name", "\"\"", nullptr, "run name; the run directory is <output.dir>/<name>/seed-<seed> (default: file name)"),
+    param_int("seed", "0", 0, kMaxInt, "root seed; every random stream derives from it"),
+    param_int("loops", "51", 1, 1e7, "loops including loop 0 (the initial random phase)"),
+    param_int("iterations", "100", 1, 1e9, "MAP-Elites iterations per loop n >= 1"),
+    param_int("batch", "200", 1, 1e7, "offspring (and selected parents) per iteration"),
+    param_int("initial_samples", "2000", 1, 1e9, "policies sampled in loop 0"),
+    param_string("insertion", "\"coin-flip\"", "coin-flip|fitness",
+                 "occupied cell: coin-flip = replace with replace_probability (reference); fitness = replace if strictly fitter"),
+    param_float("replace_probability", "0.5", 0.0, 1.0, "replacement probability of the coin-flip rule"),
+    param_string("dataset_order", "\"reference\"", "reference|insertion",
+                 "order of loop-0 dataset entries: reference = descending cell index (np.unique order), insertion = first found first"),
+};
+const ParamSpec kPolicyParams[] = {
+    param_int_list("hidden", "[32, 32]", 1, 4096, "hidden layer sizes of the tanh MLP policy"),
+};
+const ParamSpec kOutputParams[] = {
+    param_string("dir", "\"runs\"", nullptr, "root directory of run directories (relative to the working directory)"),
+    param_int("snapshot_every", "0", 0, 1e9, "also write an archive snapshot every N loops (0 = final archive only)"),
+    param_bool("snapshot_parameters", "true", "include policy parameters in archive snapshots"),
+};
+const ParamSpec kEvaluationParams[] = {
+    param_int("workers", "0", 0, 4096, "evaluation threads (0 = all cores); results do not depend on it"),
+};
+
+struct ComponentTable {
+  const char* name;
+  Kind kind;
+  const char* default_type;  // nullptr = required
+};
+const ComponentTable kComponentTables[] = {
+    {"environment", Kind::kEnvironment, nullptr},   {"descriptor", Kind::kDescriptor, ""},
+    {"representation", Kind::kRepresentation, "none"}, {"mutator", Kind::kMutator, nullptr},
+    {"initial", Kind::kMutator, "uniform"},
+};
+
+bool number_in_range(double v, const ParamSpec& s) { return v >= s.min && v <= s.max; }
+
+std::string range_text(const ParamSpec& s) {
+  std::ostringstream o;
+  o << "[" << (std::isinf(s.min) ? std::string("-inf") : (std::ostringstream() << s.min).str()) << ", "
+    << (std::isinf(s.max) ? std::string("inf") : (std::ostringstream() << s.max).str()) << "]";
+  return o.str();
+}
+
+// Checks one value node against its spec and stores it in `cfg`.
+void take_value(const toml::node& n, const ParamSpec& s, const std::string& path, Config& cfg) {
+  const std::string where = location(n);
+  auto type_error = [&]() {
+    fail_at(n, path + " must be " + std::string(s.type == ParamType::kInteger ? "an " : "a ") + to_string(s.type));
+  };
+  auto check_number = [&](double v, const toml::node& at) {
+    if (!std::isfinite(v) || !number_in_range(v, s))
+      fail_at(at, path + " = " + (std::ostringstream() << v).str() + " is out of range " + range_text(s));
+  };
+  switch (s.type) {
+    case ParamType::kBool:
+      if (!n.is_boolean()) type_error();
+      cfg.set_bool(s.key, n.as_boolean()->get(), where);
+      break;
+    case ParamType::kInteger:
+      if (!n.is_integer()) type_error();
+      check_number(static_cast<double>(n.as_integer()->get()), n);
+      cfg.set_int(s.key, n.as_integer()->get(), where);
+      break;
+    case ParamType::kFloat: {
+      if (!n.is_number()) type_error();
+      const double v = n.value<double>().value();
+      check_number(v, n);
+      cfg.set_float(s.key, v, where);
+      break;
+    }
+    case ParamType::kString: {
+      if (!n.is_string()) type_error();
+      const std::string v = n.as_string()->get();
+      if (s.choices) {
+        std::vector<std::string> options;
+        std::string c = s.choices;
+        for (std::size_t pos = 0;;) {
+          const std::size_t bar = c.find('|', pos);
+          options.push_back(c.substr(pos, bar == std::string::npos ? std::string::npos : bar - pos));
+          if (bar == std::string::npos) break;
+          pos = bar + 1;
+        }
+        if (std::find(options.begin(), options.end(), v) == options.end())
+          fail_at(n, path + " = \"" + v + "\" is not one of: " + join(options) + suggestion(v, options));
+      }
+      cfg.set_string(s.key, v, where);
+      break;
+    }
+    case ParamType::kIntegerList: {
+      if (!n.is_array()) type_error();
+      std::vector<std::int64_t> v;
+      for (const auto& x : *n.as_array()) {
+        if (!x.is_integer()) fail_at(x, path + " must be a list of integers");
+        check_number(static_cast<double>(x.as_integer()->get()), x);
+        v.push_back(x.as_integer()->get());
+      }
+      cfg.set_int_list(s.key, std::move(v), where);
+      break;
+    }
+    case ParamType::kFloatList: {
+      if (!n.is_array()) type_error();
+      std::vector<double> v;
+      for (const auto& x : *n.as_array()) {
+        if (!x.is_number()) fail_at(x, path + " must be a list of numbers");
+        check_number(x.value<double>().value(), x);
+        v.push_back(x.value<double>().value());
+      }
+      cfg.set_float_list(s.key, std::move(v), where);
+      break;
+    }
+  }
+}
+
+// Validates `tbl` (may be null = all defaults) against `specs`; `skip` keys are handled by the caller.
+Config validate_table(const toml::table* tbl, const std::string& table, const ParamSpec* specs, std::size_t count,
+                      const std::string& owner, const std::vector<std::string>& skip = {}) {
+  Config cfg(table);
+  std::vector<std::string> known;
+  for (std::size_t i = 0; i < count; ++i) known.emplace_back(specs[i].key);
+  if (tbl) {
+    for (const auto& [k, v] : *tbl) {
+      const std::string key(k.str());
+      if (std::find(skip.begin(), skip.end(), key) != skip.end()) continue;
+      const ParamSpec* spec = nullptr;
+      for (std::size_t i = 0; i < count; ++i)
+        if (key == specs[i].key) spec = &specs[i];
+      if (!spec)
+        fail_at(v, "unknown key '" + key + "' in [" + table + "]" + suggestion(key, known) + "; " + owner +
+                       " accepts: " + join(known));
+      take_value(v, *spec, table + "." + key, cfg);
+    }
+  }
+  for (std::size_t i = 0; i < count; ++i)
+    if (!cfg.has(specs[i].key)) cfg.set_from_text(specs[i], specs[i].default_value);
+  return cfg;
+}
+
+const toml::table* sub_table(const toml::table& root, const char* name) {
+  const toml::node* n = root.get(name);
+  if (!n) return nullptr;
+  if (!n->is_table()) fail_at(*n, std::string(name) + " must be a table ([" + name + "])");
+  return n->as_table();
+}
+
+void put_config(toml::table& out, const Config& cfg, const ParamSpec* specs, std::size_t count) {
+  for (std::size_t i = 0; i < count; ++i) {
+    const ParamSpec& s = specs[i];
+    switch (s.type) {
+      case ParamType::kBool: out.insert_or_assign(s.key, cfg.get_bool(s.key)); break;
+      case ParamType::kInteger: out.insert_or_assign(s.key, cfg.get_int(s.key)); break;
+      case ParamType::kFloat: out.insert_or_assign(s.key, cfg.get_float(s.key)); break;
+      case ParamType::kString: out.insert_or_assign(s.key, cfg.get_string(s.key)); break;
+      case ParamType::kIntegerList: {
+        toml::array a;
+        for (auto x : cfg.get_int_list(s.key)) a.push_back(x);
+        out.insert_or_assign(s.key, std::move(a));
+        break;
+      }
+      case ParamType::kFloatList: {
+        toml::array a;
+        for (auto x : cfg.get_float_list(s.key)) a.push_back(x);
+        out.insert_or_assign(s.key, std::move(a));
+        break;
+      }
+    }
+  }
+}
+
+}  // namespace
+
+Document Document::read(const fs::path& file) {
+  Document d;
+  d.impl->file = fs::absolute(file);
+  d.impl->root = parse_file(d.impl->file, 0);
+  return d;
+}
+
+Document Document::parse(const std::string& text, const std::string& source_name) {
+  Document d;
+  try {
+    d.impl->root = toml::parse(text, source_name);
+  } catch (const toml::parse_error& e) {
+    throw InputError(location(e.source()) + ": malformed TOML: " + std::string(e.description()));
+  }
+  return d;
+}
+
+fs::path Document::file() const { return impl->file; }
+
+void Document::apply_override(const std::string& assignment) {
+  const std::size_t eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw InputError("--set " + assignment + ": expected KEY.PATH=VALUE, for example --set mutator.sigma=0.05");
+  const std::string path = assignment.substr(0, eq);
+  const std::string value = assignment.substr(eq + 1);
+  const std::string source = "--set " + assignment;
+  toml::table parsed;
+  try {
+    parsed = toml::parse("v = " + value, source);
+  } catch (const toml::parse_error&) {
+    // Bare words are strings: --set mutator.type=iso
+    parsed = toml::parse("v = \"\"", source);
+    parsed.insert_or_assign("v", value);
+  }
+  std::vector<std::string> parts;
+  for (std::size_t pos = 0;;) {
+    const std::size_t dot = path.find('.', pos);
+    parts.push_back(path.substr(pos, dot == std::string::npos ? std::string::npos : dot - pos));
+    if (dot == std::string::npos) break;
+    pos = dot + 1;
+  }
+  toml::table* t = &impl->root;
+  for (std::size_t i = 0; i + 1 < parts.size(); ++i) {
+    toml::node* n = t->get(parts[i]);
+    if (!n) {
+      t->insert_or_assign(parts[i], toml::table{});
+      n = t->get(parts[i]);
+    }
+    if (!n->is_table()) throw InputError(source + ": '" + parts[i] + "' is not a table");
+    t = n->as_table();
+  }
+  if (parts.back().empty()) throw InputError(source + ": empty key");
+  t->insert_or_assign(parts.back(), *parsed.get("v"));
+}
+
+std::vector<std::string> Document::plugin_paths() const {
+  std::vector<std::string> out;
+  const toml::table* t = sub_table(impl->root, "plugins");
+  if (!t) return out;
+  for (const auto& [k, v] : *t) {
+    if (k.str() != "path") fail_at(v, "unknown key '" + std::string(k.str()) + "' in [plugins]; it accepts: path");
+    auto add = [&](const toml::node& x) {
+      if (!x.is_string()) fail_at(x, "plugins.path entries must be strings");
+      fs::path p = x.as_string()->get();
+      if (p.is_relative() && !impl->file.empty()) p = impl->file.parent_path() / p;
+      out.push_back(p.lexically_normal().string());
+    };
+    if (v.is_array()) {
+      for (const auto& x : *v.as_array()) add(x);
+    } else {
+      add(v);
+    }
+  }
+  return out;
+}
+
+std::vector<CoreTable> core_tables() {
+  return {{"experiment", kExperimentParams, std::size(kExperimentParams)},
+          {"policy", kPolicyParams, std::size(kPolicyParams)},
+          {"output", kOutputParams, std::size(kOutputParams)},
+          {"evaluation", kEvaluationParams, std::size(kEvaluationParams)}};
+}
+
+Experiment resolve(const Document& doc, const Registry& registry) {
+  const toml::table& root = doc.impl->root;
+  std::vector<std::string> allowed = {"experiment", "policy", "output", "evaluation", "plugins"};
+  for (const auto& t : kComponentTables) allowed.emplace_back(t.name);
+  for (const auto& [k, v] : root) {
+    const std::string key(k.str());
+    if (std::find(allowed.begin(), allowed.end(), key) == allowed.end())
+      fail_at(v, "unknown table '" + key + "'" + suggestion(key, allowed) + "; experiment files have: " + join(allowed));
+  }
+
+  Experiment ex;
+  ex.file = doc.impl->file;
+  ex.plugin_paths = doc.plugin_paths();
+  const Config e = validate_table(sub_table(root, "experiment"), "experiment", kExperimentParams,
+                                  std::size(kExperimentParams), "the core");
+  const Config p = validate_table(sub_table(root, "policy"), "policy", kPolicyParams, std::size(kPolicyParams), "the core");
+  const Config o = validate_table(sub_table(root, "output"), "output", kOutputParams, std::size(kOutputParams), "the core");
+  const Config w = validate_table(sub_table(root, "evaluation"), "evaluation", kEvaluationParams,
+                                  std::size(kEvaluationParams), "the core");
+  auto& s = ex.settings;
+  s.name = e.get_string("name");
+  if (s.name.empty()) s.name = ex.file.empty() ? "experiment" : ex.file.stem().string();
+  if (s.name.find('/') != std::string::npos || s.name == "." || s.name == "..")
+    throw InputError(e.where("name") + ": experiment.name must be a plain name, not a path");
+  s.seed = static_cast<std::uint64_t>(e.get_int("seed"));
+  s.loops = static_cast<int>(e.get_int("loops"));
+  s.iterations = static_cast<int>(e.get_int("iterations"));
+  s.batch = static_cast<int>(e.get_int("batch"));
+  s.initial_samples = static_cast<int>(e.get_int("initial_samples"));
+  s.insertion = e.get_string("insertion");
+  s.replace_probability = e.get_float("replace_probability");
+  s.dataset_order = e.get_string("dataset_order");
+  for (auto h : p.get_int_list("hidden")) s.hidden.push_back(static_cast<int>(h));
+  s.output_dir = o.get_string("dir");
+  s.snapshot_every = static_cast<int>(o.get_int("snapshot_every"));
+  s.snapshot_parameters = o.get_bool("snapshot_parameters");
+  s.workers = static_cast<int>(w.get_int("workers"));
+
+  toml::table resolved;
+  auto put_core = [&](const char* name, const Config& cfg, const ParamSpec* specs, std::size_t n) {
+    toml::table t;
+    put_config(t, cfg, specs, n);
+    resolved.insert_or_assign(name, std::move(t));
+  };
+  put_core("experiment", e, kExperimentParams, std::size(kExperimentParams));
+  resolved["experiment"].as_table()->insert_or_assign("name", s.name);
+  put_core("policy", p, kPolicyParams, std::size(kPolicyParams));
+  put_core("output", o, kOutputParams, std::size(kOutputParams));
+  put_core("evaluation", w, kEvaluationParams, std::size(kEvaluationParams));
+
+  for (const auto& ct : kComponentTables) {
+    ComponentConfig* cc = nullptr;
+    const std::string table = ct.name;
+    if (table == "environment") cc = &ex.environment;
+    if (table == "descriptor") cc = &ex.descriptor;
+    if (table == "representation") cc = &ex.representation;
+    if (table == "mutator") cc = &ex.mutator;
+    if (table == "initial") cc = &ex.initial;
+    cc->table = table;
+    const toml::table* t = sub_table(root, ct.name);
+    const toml::node* type_node = t ? t->get("type") : nullptr;
+    if (type_node && !type_node->is_string()) fail_at(*type_node, table + ".type must be a string (a component name)");
+    if (type_node) {
+      cc->type = type_node->as_string()->get();
+    } else if (ct.default_type && *ct.default_type) {
+      cc->type = ct.default_type;
+    } else if (ct.default_type) {
+      // Descriptor: the environment's default, chosen once the environment exists.
+      if (t && !t->empty())
+        fail_at(*t, "[descriptor] sets options but no type; add type = \"<descriptor name>\"");
+      continue;
+    } else {
+      throw InputError((ex.file.empty() ? std::string("<experiment>") : ex.file.string()) + ": [" + table +
+                       "] with a type is required (see qdrun --list for the available " + to_string(ct.kind) + "s)");
+    }
+    try {
+      cc->entry = &registry.require(cc->type, ct.kind);
+    } catch (const InputError& err) {
+      throw InputError((type_node ? location(*type_node) : std::string("default")) + ": " + table + ".type: " + err.what());
+    }
+    const ComponentInfo& info = *cc->entry->info;
+    cc->config = validate_table(t, table, info.params, info.param_count,
+                                "component '" + cc->type + "' (" + cc->entry->plugin->path + ")", {"type"});
+    toml::table out;
+    out.insert_or_assign("type", cc->type);
+    put_config(out, cc->config, info.params, info.param_count);
+    resolved.insert_or_assign(table, std::move(out));
+  }
+  if (!ex.plugin_paths.empty()) {
+    toml::array a;
+    for (const auto& x : ex.plugin_paths) a.push_back(x);
+    toml::table t;
+    t.insert_or_assign("path", std::move(a));
+    resolved.insert_or_assign("plugins", std::move(t));
+  }
+  std::ostringstream out;
+  out << resolved << "\n";
+  ex.resolved_toml = out.str();
+  return ex;
+}
+
+void resolve_default_component(Experiment& ex, ComponentConfig& cc, const ComponentEntry& entry) {
+  cc.type = entry.info->name;
+  cc.entry = &entry;
+  cc.config = validate_table(nullptr, cc.table, entry.info->params, entry.info->param_count, cc.type);
+  toml::table out;
+  out.insert_or_assign("type", cc.type);
+  put_config(out, cc.config, entry.info->params, entry.info->param_count);
+  toml::table wrapper;
+  wrapper.insert_or_assign(cc.table, std::move(out));
+  std::ostringstream o;
+  o << wrapper << "\n";
+  ex.resolved_toml += "\n" + o.str();
+}
+
+std::string describe_params(const ParamSpec* params, std::size_t count) {
+  std::ostringstream o;
+  if (count == 0) o << "  (no parameters)\n";
+  for (std::size_t i = 0; i < count; ++i) {
+    const ParamSpec& s = params[i];
+    o << "  " << s.key << " (" << to_string(s.type) << ", default " << s.default_value;
+    if (s.type == ParamType::kInteger || s.type == ParamType::kFloat || s.type == ParamType::kIntegerList ||
+        s.type == ParamType::kFloatList) {
+      if (!std::isinf(s.min) || !std::isinf(s.max)) o << ", range " << range_text(s);
+    }
+    if (s.choices) o << ", one of " << s.choices;
+    o << ")\n      " << (s.help ? s.help : "") << "\n";
+  }
+  return o.str();
+}
+
+}  // namespace qd::runtime

@@ -1,0 +1,567 @@
+#include "runtime/run.hpp"
+
+#include "runtime/csv.hpp"
+
+#include <qd/errors.hpp>
+#include <qd/state_io.hpp>
+#include <qd/version.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <fstream>
+#include <numeric>
+#include <sstream>
+#include <unistd.h>
+
+namespace qd::runtime {
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr char kCheckpointMagic[8] = {'Q', 'D', 'C', 'K', 'P', 'T', '0', '1'};
+constexpr const char* kCheckpointFile = "checkpoint.bin";
+
+double now_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::string utc_now() {
+  const std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+std::string cpu_model() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  return "unknown";
+}
+
+std::string toml_string(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"' || c == '\\') out += '\\';
+    if (c == '\n') {
+      out += "\\n";
+      continue;
+    }
+    out += c;
+  }
+  return out + "\"";
+}
+
+// Files the loop appends to; a checkpoint records their sizes and resume truncates them back.
+bool is_appended_log(const fs::path& p) {
+  return p.extension() == ".csv" && p.filename() != "archive.csv";
+}
+
+}  // namespace
+
+Run::Run(Experiment experiment, const Registry& registry, RunOptions options)
+    : ex_(std::move(experiment)), opt_(std::move(options)) {
+  const auto& s = ex_.settings;
+  dir_ = opt_.directory.empty() ? fs::path(s.output_dir) / s.name / ("seed-" + std::to_string(s.seed))
+                               : fs::path(opt_.directory);
+
+  auto located = [](const ComponentConfig& cc, auto&& build) {
+    try {
+      return build();
+    } catch (const ConfigError& e) {
+      throw ConfigError(e.key(), cc.config.where(e.key()) + ": [" + cc.table + "]." + e.key() + ": " + e.what());
+    }
+  };
+
+  BuildContext ctx;
+  ctx.seed = s.seed;
+  env_ = located(ex_.environment, [&] { return registry.create<Environment>(*ex_.environment.entry, ex_.environment.config, ctx); });
+  const EnvironmentInfo info = env_->info();
+  if (info.observation_size <= 0 || info.action_size <= 0)
+    throw PluginError("environment '" + ex_.environment.type + "' reports no observation or action size");
+  shape_ = PolicyShape(info.observation_size, s.hidden, info.action_size);
+  ctx.policy = &shape_;
+
+  if (!ex_.descriptor.entry) {
+    if (info.default_descriptor.empty())
+      throw InputError("environment '" + ex_.environment.type + "' has no default descriptor; add [descriptor] type = ...");
+    resolve_default_component(ex_, ex_.descriptor, registry.require(info.default_descriptor, Kind::kDescriptor));
+  }
+  desc_ = located(ex_.descriptor, [&] { return registry.create<Descriptor>(*ex_.descriptor.entry, ex_.descriptor.config, ctx); });
+  const GridSpec grid = desc_->grid();
+  if (grid.cells <= 0 || grid.shape.empty()) throw PluginError("descriptor '" + ex_.descriptor.type + "' declares an empty grid");
+
+  repr_ = located(ex_.representation,
+                  [&] { return registry.create<Representation>(*ex_.representation.entry, ex_.representation.config, ctx); });
+  const int latent = repr_->latent_size();
+  if (latent < 0 || static_cast<std::size_t>(latent) > shape_.param_count())
+    throw ConfigError("latent", ex_.representation.config.where("latent") + ": [representation] latent size " +
+                                    std::to_string(latent) + " is larger than the policy's parameter count " +
+                                    std::to_string(shape_.param_count()));
+  ctx.latent_size = latent;
+  mutator_ = located(ex_.mutator, [&] { return registry.create<Mutator>(*ex_.mutator.entry, ex_.mutator.config, ctx); });
+  initial_ = located(ex_.initial, [&] { return registry.create<Mutator>(*ex_.initial.entry, ex_.initial.config, ctx); });
+  if (initial_->uses_parents())
+    throw InputError("[initial] type = \"" + ex_.initial.type +
+                     "\" needs parents, but loop 0 has none; use a sampler such as \"uniform\" or \"glorot\"");
+  for (const auto* m : {&ex_.mutator, &ex_.initial}) {
+    const Mutator& obj = m == &ex_.mutator ? *mutator_ : *initial_;
+    if (obj.needs_latent() && latent == 0)
+      throw InputError("[" + m->table + "] type = \"" + m->type + "\" needs a representation with a latent space, but [representation] type = \"" +
+                       ex_.representation.type + "\" has none (use \"autoencoder\" or \"pca\")");
+  }
+  mutator_metric_names_ = mutator_->metric_names();
+
+  for (const ComponentConfig* cc : {&ex_.environment, &ex_.descriptor, &ex_.representation, &ex_.mutator, &ex_.initial}) {
+    const PluginInfo& pi = *cc->entry->plugin->info;
+    plugin_lines_.push_back("{ table = " + toml_string(cc->table) + ", component = " + toml_string(cc->type) +
+                            ", plugin = " + toml_string(pi.plugin_name) + ", version = " + toml_string(pi.plugin_version) +
+                            ", path = " + toml_string(cc->entry->plugin->path) + " }");
+  }
+
+  const int workers = opt_.workers > 0 ? opt_.workers : (s.workers > 0 ? s.workers : hardware_workers());
+  evaluator_ = std::make_unique<Evaluator>(*env_, *desc_, shape_, workers);
+  archive_ = std::make_unique<Archive>(grid.cells, shape_.param_count(), grid.shape.size());
+  dataset_ = std::make_unique<Dataset>(shape_.param_count());
+}
+
+Run::~Run() = default;
+
+void Run::create_directory() {
+  std::error_code ec;
+  if (fs::exists(dir_ / "config.toml", ec) || fs::exists(dir_ / kCheckpointFile, ec))
+    throw InputError(dir_.string() + " already holds a run; continue it with --resume " + dir_.string() +
+                     ", or choose another --output, --seed or experiment.name");
+  fs::create_directories(dir_, ec);
+  if (ec) throw InputError("cannot create the run directory " + dir_.string() + ": " + ec.message());
+  if (::access(dir_.c_str(), W_OK) != 0) throw InputError("the run directory " + dir_.string() + " is not writable");
+  set_status("running");
+  write_file_atomic(dir_ / "config.toml", ex_.resolved_toml);
+  write_provenance();
+  std::string header = "loop,iteration,evaluations,elites,coverage,mixing_ratio,added,replaced,invalid,wall_seconds,train_seconds";
+  for (const auto& n : mutator_metric_names_) header += "," + n;
+  write_file_atomic(dir_ / "metrics.csv", header + "\n");
+  write_file_atomic(dir_ / "training.csv", "loop,epochs,train_loss,test_loss,stopped_early,seconds\n");
+  next_loop_ = 0;
+}
+
+void Run::open_for_resume() {
+  std::error_code ec;
+  if (!fs::exists(dir_ / kCheckpointFile, ec))
+    throw InputError(dir_.string() + " has no checkpoint to resume from (the run stopped before the end of loop 0)");
+  if (::access(dir_.c_str(), W_OK) != 0) throw InputError("the run directory " + dir_.string() + " is not writable");
+  load_checkpoint();
+  write_file_atomic(dir_ / "config.toml", ex_.resolved_toml);
+  set_status("running");
+  write_provenance();
+}
+
+double Run::wall_seconds() const { return wall_before_ + (now_seconds() - session_start_); }
+
+void Run::set_status(const std::string& status) const { write_file_atomic(dir_ / "status", status + "\n"); }
+
+void Run::write_provenance() const {
+  std::ostringstream o;
+  char host[256] = {0};
+  ::gethostname(host, sizeof(host) - 1);
+  o << "qd_version = " << toml_string(version_string()) << "\n"
+    << "git_revision = " << toml_string(git_revision()) << "\n"
+    << "build_fingerprint = " << toml_string(build_fingerprint()) << "\n"
+    << "host = " << toml_string(host) << "\n"
+    << "cpu = " << toml_string(cpu_model()) << "\n"
+    << "hardware_threads = " << hardware_workers() << "\n"
+    << "workers = " << evaluator_->workers() << "\n"
+    << "seed = " << ex_.settings.seed << "\n"
+    << "started = " << toml_string(utc_now()) << "\n"
+    << "resumed_at_loop = " << next_loop_ << "\n"
+    << "command = " << toml_string(opt_.command_line) << "\n"
+    << "experiment_file = " << toml_string(ex_.file.string()) << "\n"
+    << "policy_parameters = " << shape_.param_count() << "\n"
+    << "cells = " << archive_->cells() << "\n"
+    << "plugins = [\n";
+  for (const auto& line : plugin_lines_) o << "  " << line << ",\n";
+  o << "]\n";
+  // One file per session, so the provenance of each part of a resumed run is kept.
+  const std::string name = next_loop_ == 0 ? "provenance.toml" : "provenance-resume-loop-" + std::to_string(next_loop_) + ".toml";
+  write_file_atomic(dir_ / name, o.str());
+}
+
+void Run::report(int loop, int iteration, bool loop_finished, const std::string& note) {
+  if (!opt_.on_progress) return;
+  Progress p;
+  const auto& s = ex_.settings;
+  p.loop = loop;
+  p.loops = s.loops;
+  p.iteration = iteration;
+  p.evaluations = evaluations_;
+  p.total_evaluations = static_cast<std::uint64_t>(s.initial_samples) +
+                        static_cast<std::uint64_t>(s.loops - 1) * static_cast<std::uint64_t>(s.iterations) *
+                            static_cast<std::uint64_t>(s.batch);
+  p.elites = archive_->size();
+  p.coverage = archive_->coverage();
+  p.wall_seconds = now_seconds() - session_start_;
+  p.session_evaluations = session_evaluations_;
+  p.loop_finished = loop_finished;
+  p.note = note;
+  opt_.on_progress(p);
+}
+
+bool Run::run() {
+  session_start_ = now_seconds();
+  const int loops = ex_.settings.loops;
+  while (next_loop_ < loops) {
+    const int loop = next_loop_;
+    if (loop == 0)
+      loop_zero();
+    else
+      map_elites_loop(loop);
+    fit_representation(loop);
+    next_loop_ = loop + 1;
+    const int every = ex_.settings.snapshot_every;
+    if (every > 0 && loop % every == 0) {
+      fs::create_directories(dir_ / "archive");
+      char name[32];
+      std::snprintf(name, sizeof(name), "loop-%05d.csv", loop);
+      write_snapshot(dir_ / "archive" / name);
+    }
+    write_checkpoint(loop);
+    report(loop, ex_.settings.iterations - 1, true);
+    if (opt_.stop_after_loop >= 0 && loop >= opt_.stop_after_loop && next_loop_ < loops) {
+      set_status("stopped after loop " + std::to_string(loop) + " (resume with --resume)");
+      return false;
+    }
+  }
+  write_snapshot(dir_ / "archive.csv");
+  set_status("complete");
+  return true;
+}
+
+void Run::loop_zero() {
+  const auto& s = ex_.settings;
+  const auto n = static_cast<std::size_t>(s.initial_samples);
+  const std::size_t P = shape_.param_count();
+  Parents none;
+  none.theta.resize(0, static_cast<Eigen::Index>(P));
+  Offspring off;
+  off.reset(n, P, 0);
+  Rng rng(s.seed, Stream::kInitial, 0);
+  MutateContext mctx{0, 0, &rng, repr_.get(), archive_.get()};
+  initial_->mutate(none, n, mctx, off);
+  if (static_cast<std::size_t>(off.theta.rows()) != n || static_cast<std::size_t>(off.theta.cols()) != P)
+    throw Error("initial sampler '" + ex_.initial.type + "' returned a batch of the wrong shape");
+
+  std::vector<std::uint64_t> seeds(n);
+  for (std::size_t i = 0; i < n; ++i) seeds[i] = Rng::derive_seed(s.seed, Stream::kEpisode, 0, 0, i);
+  Evaluations ev;
+  evaluator_->evaluate(off.theta, seeds, ev);
+  evaluations_ += n;
+  session_evaluations_ += n;
+
+  // Reference: the archive starts as the first-sampled policy of each distinct cell.
+  std::size_t added = 0, invalid = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (ev.cells[i] < 0) {
+      ++invalid;
+      continue;
+    }
+    const auto r = archive_->offer(ev.cells[i], off.theta.row(static_cast<Eigen::Index>(i)).data(),
+                                   ev.descriptors.row(static_cast<Eigen::Index>(i)).data(), ev.traces[i].fitness, 0.0, false);
+    if (r == Insertion::kAdded) ++added;
+  }
+  std::vector<std::size_t> slots(archive_->size());
+  std::iota(slots.begin(), slots.end(), std::size_t{0});
+  if (s.dataset_order == "reference")  // np.unique over one-hot rows: descending cell index
+    std::sort(slots.begin(), slots.end(), [&](auto a, auto b) { return archive_->cell(a) > archive_->cell(b); });
+  for (std::size_t slot : slots) dataset_->add(archive_->params(slot), archive_->cell(slot), 0);
+  write_metrics_row(0, 0, &off, added, 0, invalid);
+}
+
+void Run::map_elites_loop(int loop) {
+  const auto& s = ex_.settings;
+  const auto batch = static_cast<std::size_t>(s.batch);
+  const std::size_t P = shape_.param_count();
+  const auto LD = static_cast<std::size_t>(repr_->latent_size());
+  LoopContext lctx{loop, archive_.get(), dataset_.get(), repr_.get()};
+  mutator_->begin_loop(lctx);
+
+  std::vector<std::int64_t> touched;  // cells inserted or replaced this loop, first touch first
+  std::vector<std::uint8_t> touched_flag(static_cast<std::size_t>(archive_->cells()), 0);
+  Parents parents;
+  Offspring off;
+  Vector recn;
+  Evaluations ev;
+  std::vector<std::uint64_t> seeds(batch);
+  std::vector<Insertion> outcomes(batch);
+  for (int it = 0; it < s.iterations; ++it) {
+    if (mutator_->uses_parents()) {
+      if (archive_->size() == 0) throw Error("the archive is empty after loop 0: no initial sample could be described");
+      Rng sel(s.seed, Stream::kSelection, static_cast<std::uint64_t>(loop), static_cast<std::uint64_t>(it));
+      archive_->select(batch, sel, parents);
+    } else {
+      parents.theta.resize(0, static_cast<Eigen::Index>(P));
+      parents.recn_error.resize(0);
+      parents.cells.clear();
+    }
+    off.reset(batch, P, LD);
+    Rng mrng(s.seed, Stream::kMutation, static_cast<std::uint64_t>(loop), static_cast<std::uint64_t>(it));
+    MutateContext mctx{loop, it, &mrng, repr_.get(), archive_.get()};
+    mutator_->mutate(parents, batch, mctx, off);
+    if (static_cast<std::size_t>(off.theta.rows()) != batch || static_cast<std::size_t>(off.theta.cols()) != P ||
+        off.has_latent.size() != batch || off.metrics.size() != mutator_metric_names_.size())
+      throw Error("mutator '" + ex_.mutator.type + "' returned a batch of the wrong shape");
+    fill_reconstruction(off, recn);
+
+    for (std::size_t i = 0; i < batch; ++i)
+      seeds[i] = Rng::derive_seed(s.seed, Stream::kEpisode, static_cast<std::uint64_t>(loop), static_cast<std::uint64_t>(it), i);
+    evaluator_->evaluate(off.theta, seeds, ev);
+    evaluations_ += batch;
+    session_evaluations_ += batch;
+
+    // Sequential insertion in offspring order; the coin is drawn only for occupied cells.
+    Rng coin(s.seed, Stream::kInsertion, static_cast<std::uint64_t>(loop), static_cast<std::uint64_t>(it));
+    Feedback fb;
+    fb.loop = loop;
+    fb.iteration = it;
+    fb.offspring = batch;
+    for (std::size_t i = 0; i < batch; ++i) {
+      const std::int64_t cell = ev.cells[i];
+      if (cell < 0) {
+        outcomes[i] = Insertion::kInvalid;
+        ++fb.invalid;
+        continue;
+      }
+      bool replace = false;
+      if (archive_->occupied(cell)) {
+        if (s.insertion == "fitness")
+          replace = ev.traces[i].fitness > archive_->fitness(static_cast<std::size_t>(archive_->slot_of(cell)));
+        else
+          replace = coin.uniform() < s.replace_probability;
+      }
+      const auto e = static_cast<Eigen::Index>(i);
+      outcomes[i] = archive_->offer(cell, off.theta.row(e).data(), ev.descriptors.row(e).data(), ev.traces[i].fitness,
+                                    LD ? recn[e] : 0.0, replace);
+      if (outcomes[i] == Insertion::kAdded) ++fb.added;
+      if (outcomes[i] == Insertion::kReplaced) ++fb.replaced;
+      if (outcomes[i] == Insertion::kRejected) ++fb.rejected;
+      if ((outcomes[i] == Insertion::kAdded || outcomes[i] == Insertion::kReplaced) &&
+          !touched_flag[static_cast<std::size_t>(cell)]) {
+        touched_flag[static_cast<std::size_t>(cell)] = 1;
+        touched.push_back(cell);
+      }
+    }
+    fb.outcomes = &outcomes;
+    mutator_->feedback(fb);
+    write_metrics_row(loop, it, &off, fb.added, fb.replaced, fb.invalid);
+    report(loop, it, false);
+  }
+  // Spec 3.3.4: the dataset gains the current occupant of every newly discovered cell.
+  for (std::int64_t cell : touched)
+    if (!dataset_->contains_cell(cell))
+      dataset_->add(archive_->params(static_cast<std::size_t>(archive_->slot_of(cell))), cell, loop);
+}
+
+void Run::fill_reconstruction(Offspring& off, Vector& recn) const {
+  const int LD = repr_->latent_size();
+  if (LD == 0) {
+    recn.setZero(off.theta.rows());
+    return;
+  }
+  std::vector<Eigen::Index> missing;
+  for (std::size_t i = 0; i < off.has_latent.size(); ++i)
+    if (!off.has_latent[i]) missing.push_back(static_cast<Eigen::Index>(i));
+  if (!missing.empty()) {
+    Matrix theta(static_cast<Eigen::Index>(missing.size()), off.theta.cols());
+    for (std::size_t k = 0; k < missing.size(); ++k) theta.row(static_cast<Eigen::Index>(k)) = off.theta.row(missing[k]);
+    Matrix z;
+    repr_->encode(theta, z);
+    for (std::size_t k = 0; k < missing.size(); ++k) off.latent.row(missing[k]) = z.row(static_cast<Eigen::Index>(k));
+  }
+  Matrix rec;
+  repr_->decode(off.latent, rec);
+  recn = (off.theta - rec).rowwise().norm();
+}
+
+void Run::fit_representation(int loop) {
+  if (repr_->latent_size() == 0) return;
+  report(loop, ex_.settings.iterations - 1, false, "training " + ex_.representation.type);
+  const double t0 = now_seconds();
+  FitContext fctx{loop, ex_.settings.seed, dir_.string()};
+  const FitReport r = repr_->fit(*dataset_, fctx);
+  const double seconds = now_seconds() - t0;
+  train_seconds_ += seconds;
+  std::string row;
+  append_int(row, loop);
+  row += ',';
+  append_int(row, r.epochs);
+  row += ',';
+  append_number(row, r.train_loss);
+  row += ',';
+  if (!std::isnan(r.test_loss)) append_number(row, r.test_loss);
+  row += r.stopped_early ? ",1," : ",0,";
+  append_number(row, seconds);
+  append_to_file(dir_ / "training.csv", row + "\n");
+  if (loop == 0) {
+    // Spec 3.3.1: at loop 1 the archive is rebuilt from D with the errors of the loop-0 model.
+    // Later errors stay as stored at insertion (the reference's stale values).
+    Vector err;
+    repr_->reconstruction_errors(Matrix(dataset_->params()), err);
+    for (std::size_t k = 0; k < dataset_->size(); ++k) {
+      const auto slot = archive_->slot_of(dataset_->cells()[k]);
+      archive_->set_recn_error(static_cast<std::size_t>(slot), err[static_cast<Eigen::Index>(k)]);
+    }
+  }
+}
+
+void Run::write_metrics_row(int loop, int iteration, const Offspring* off, std::size_t added, std::size_t replaced,
+                            std::size_t invalid) {
+  std::string row;
+  append_int(row, loop);
+  row += ',';
+  append_int(row, iteration);
+  row += ',';
+  append_int(row, static_cast<std::int64_t>(evaluations_));
+  row += ',';
+  append_int(row, static_cast<std::int64_t>(archive_->size()));
+  row += ',';
+  append_number(row, archive_->coverage());
+  row += ',';
+  if (off && !std::isnan(off->mixing_ratio)) append_number(row, off->mixing_ratio);
+  row += ',';
+  append_int(row, static_cast<std::int64_t>(added));
+  row += ',';
+  append_int(row, static_cast<std::int64_t>(replaced));
+  row += ',';
+  append_int(row, static_cast<std::int64_t>(invalid));
+  row += ',';
+  append_number(row, wall_seconds());
+  row += ',';
+  append_number(row, train_seconds_);
+  for (std::size_t k = 0; k < mutator_metric_names_.size(); ++k) {
+    row += ',';
+    if (off && k < off->metrics.size()) append_number(row, off->metrics[k]);
+  }
+  append_to_file(dir_ / "metrics.csv", row + "\n");
+}
+
+void Run::write_snapshot(const fs::path& path) const {
+  const GridSpec grid = desc_->grid();
+  const std::size_t P = shape_.param_count();
+  const std::size_t dims = archive_->descriptor_dims();
+  // pyribs-style columns: index, objective, measures_*, solution_*; plus the stored recn error.
+  std::string out = "index,objective";
+  for (std::size_t d = 0; d < dims; ++d) out += ",measures_" + std::to_string(d);
+  out += ",recn_error";
+  if (ex_.settings.snapshot_parameters)
+    for (std::size_t k = 0; k < P; ++k) out += ",solution_" + std::to_string(k);
+  out += '\n';
+  // Rows in cell order, so two archives with the same content give the same file.
+  std::vector<std::size_t> slots(archive_->size());
+  std::iota(slots.begin(), slots.end(), std::size_t{0});
+  std::sort(slots.begin(), slots.end(), [&](auto a, auto b) { return archive_->cell(a) < archive_->cell(b); });
+  for (std::size_t slot : slots) {
+    append_int(out, archive_->cell(slot));
+    out += ',';
+    append_number(out, archive_->fitness(slot));
+    for (std::size_t d = 0; d < dims; ++d) {
+      out += ',';
+      append_number(out, archive_->descriptor(slot)[d]);
+    }
+    out += ',';
+    append_number(out, archive_->recn_error(slot));
+    if (ex_.settings.snapshot_parameters)
+      for (std::size_t k = 0; k < P; ++k) {
+        out += ',';
+        append_number(out, archive_->params(slot)[k]);
+      }
+    out += '\n';
+  }
+  write_file_atomic(path, out);
+}
+
+void Run::write_checkpoint(int loop) {
+  std::ostringstream o(std::ios::binary);
+  o.write(kCheckpointMagic, sizeof(kCheckpointMagic));
+  state::write_string(o, ex_.resolved_toml);
+  state::write<std::int32_t>(o, loop);
+  state::write<std::uint64_t>(o, evaluations_);
+  state::write<double>(o, wall_seconds());
+  state::write<double>(o, train_seconds_);
+  // Sizes of the append-only logs, so a resume can cut away rows written after this point.
+  std::vector<std::pair<std::string, std::uint64_t>> logs;
+  for (const auto& e : fs::directory_iterator(dir_))
+    if (e.is_regular_file() && is_appended_log(e.path())) logs.emplace_back(e.path().filename().string(), e.file_size());
+  std::sort(logs.begin(), logs.end());
+  state::write<std::uint32_t>(o, static_cast<std::uint32_t>(logs.size()));
+  for (const auto& [name, size] : logs) {
+    state::write_string(o, name);
+    state::write<std::uint64_t>(o, size);
+  }
+  archive_->save(o);
+  dataset_->save(o);
+  auto blob = [&](auto& component) {
+    std::ostringstream b(std::ios::binary);
+    component.save(b);
+    state::write_string(o, b.str());
+  };
+  blob(*repr_);
+  blob(*mutator_);
+  blob(*initial_);
+  write_file_atomic(dir_ / kCheckpointFile, o.str());
+}
+
+void Run::load_checkpoint() {
+  std::ifstream in(dir_ / kCheckpointFile, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  std::istringstream i(ss.str(), std::ios::binary);
+  try {
+    char magic[sizeof(kCheckpointMagic)];
+    if (!i.read(magic, sizeof(magic)) || !std::equal(magic, magic + sizeof(magic), kCheckpointMagic))
+      throw StateError("not a qdrun checkpoint");
+    const std::string stored_config = state::read_string(i);
+    (void)stored_config;  // the caller resolved the run directory's config.toml (with allowed overrides)
+    const int loop = state::read<std::int32_t>(i);
+    evaluations_ = state::read<std::uint64_t>(i);
+    wall_before_ = state::read<double>(i);
+    train_seconds_ = state::read<double>(i);
+    const auto nlogs = state::read<std::uint32_t>(i);
+    std::vector<std::pair<std::string, std::uint64_t>> logs;
+    for (std::uint32_t k = 0; k < nlogs; ++k) {
+      std::string name = state::read_string(i);
+      logs.emplace_back(std::move(name), state::read<std::uint64_t>(i));
+    }
+    archive_->load(i);
+    dataset_->load(i);
+    auto blob = [&](auto& component, const char* what) {
+      std::istringstream b(state::read_string(i), std::ios::binary);
+      try {
+        component.load(b);
+      } catch (const std::exception& e) {
+        throw StateError(std::string(what) + " state: " + e.what());
+      }
+    };
+    blob(*repr_, "representation");
+    blob(*mutator_, "mutator");
+    blob(*initial_, "initial sampler");
+    // Cut the logs back to the checkpoint and drop logs created after it.
+    for (const auto& e : fs::directory_iterator(dir_)) {
+      if (!e.is_regular_file() || !is_appended_log(e.path())) continue;
+      const std::string name = e.path().filename().string();
+      const auto it = std::find_if(logs.begin(), logs.end(), [&](const auto& l) { return l.first == name; });
+      if (it == logs.end())
+        fs::remove(e.path());
+      else if (e.file_size() > it->second)
+        fs::resize_file(e.path(), it->second);
+    }
+    next_loop_ = loop + 1;
+  } catch (const StateError& e) {
+    throw InputError((dir_ / kCheckpointFile).string() + ": cannot resume: " + e.what());
+  }
+}
+
+}  // namespace qd::runtime

@@ -1,0 +1,94 @@
+// Experiment files: reading TOML (with includes and --set overrides), validating every table
+// against its declared schema, and writing the resolved configuration back out.
+#pragma once
+
+#include "runtime/registry.hpp"
+
+#include <qd/config.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace qd::runtime {
+
+// The core's own settings, resolved.
+struct ExperimentSettings {
+  std::string name;
+  std::uint64_t seed = 0;
+  int loops = 0;             // loop 0 (initial sampling) included
+  int iterations = 0;        // MAP-Elites iterations per loop n >= 1
+  int batch = 0;             // offspring per iteration
+  int initial_samples = 0;   // loop-0 samples
+  std::string insertion;     // "coin-flip" | "fitness"
+  double replace_probability = 0.5;
+  std::string dataset_order;  // "reference" | "insertion"
+  std::vector<int> hidden;
+  std::string output_dir;
+  int snapshot_every = 0;
+  bool snapshot_parameters = true;
+  int workers = 0;  // 0 = all cores
+};
+
+// One component table after validation.
+struct ComponentConfig {
+  std::string table;     // "environment", "mutator", ...
+  std::string type;      // component name
+  const ComponentEntry* entry = nullptr;
+  Config config;
+};
+
+struct Experiment {
+  std::filesystem::path file;  // the experiment file (empty when built in memory)
+  ExperimentSettings settings;
+  ComponentConfig environment, descriptor, representation, mutator, initial;
+  std::string resolved_toml;  // every setting with defaults filled in
+  std::vector<std::string> plugin_paths;  // [plugins] path, made absolute
+};
+
+// Raw parsed document (PIMPL around toml::table so no TOML type leaks into headers).
+class Document {
+ public:
+  Document();
+  ~Document();
+  Document(Document&&) noexcept;
+  Document& operator=(Document&&) noexcept;
+
+  // Reads `file`, following `include = [...]` (paths relative to the including file; the including
+  // file's keys win). Throws qd::InputError with file:line:column on any problem.
+  static Document read(const std::filesystem::path& file);
+  static Document parse(const std::string& text, const std::string& source_name);
+
+  // Applies `key.path=value`; value is TOML value syntax, or a bare word taken as a string.
+  void apply_override(const std::string& assignment);
+
+  // [plugins] path entries (absolute), available before plugins are loaded.
+  std::vector<std::string> plugin_paths() const;
+  std::filesystem::path file() const;
+
+  struct Impl;
+  std::unique_ptr<Impl> impl;
+};
+
+// Validates the document against the core schema and each component's declared parameters.
+// Plugins must already be discovered in `registry` (component types are looked up there).
+Experiment resolve(const Document& doc, const Registry& registry);
+
+// Fills `cc` with the defaults of `entry` and appends its resolved table to `ex.resolved_toml`
+// (used for the descriptor chosen by the environment when the experiment names none).
+void resolve_default_component(Experiment& ex, ComponentConfig& cc, const ComponentEntry& entry);
+
+// Parameters of the core tables, for --describe and validation.
+struct CoreTable {
+  const char* name;
+  const ParamSpec* params;
+  std::size_t count;
+};
+std::vector<CoreTable> core_tables();
+
+// Renders a component's parameters for `qdrun --describe`.
+std::string describe_params(const ParamSpec* params, std::size_t count);
+
+}  // namespace qd::runtime

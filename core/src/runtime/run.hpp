@@ -1,0 +1,108 @@
+// One run of an experiment: builds the components, owns the run directory, runs the loop of
+// spec section 3 with checkpoints at every loop boundary, and resumes from them bit-identically.
+#pragma once
+
+#include "runtime/evaluator.hpp"
+#include "runtime/experiment.hpp"
+#include "runtime/registry.hpp"
+
+#include <qd/archive.hpp>
+#include <qd/dataset.hpp>
+#include <qd/descriptor.hpp>
+#include <qd/environment.hpp>
+#include <qd/mutator.hpp>
+#include <qd/representation.hpp>
+
+#include <filesystem>
+#include <functional>
+#include <string>
+
+namespace qd::runtime {
+
+struct Progress {
+  int loop = 0;
+  int loops = 0;
+  int iteration = 0;
+  std::uint64_t evaluations = 0;
+  std::uint64_t total_evaluations = 0;
+  std::size_t elites = 0;
+  double coverage = 0.0;
+  double wall_seconds = 0.0;       // this session
+  std::uint64_t session_evaluations = 0;
+  bool loop_finished = false;
+  std::string note;  // e.g. "training autoencoder"
+};
+
+struct RunOptions {
+  int workers = 0;            // 0 = from the experiment (then all cores)
+  int stop_after_loop = -1;   // stop cleanly after this loop's checkpoint (-1 = run to the end)
+  std::string directory;      // run directory; empty = <output>/<name>/seed-<seed>
+  std::string command_line;
+  std::function<void(const Progress&)> on_progress;
+};
+
+class Run {
+ public:
+  // Builds every component (plugin factories run here). Throws qd::InputError / ConfigError /
+  // PluginError for bad input; creates nothing on disk.
+  Run(Experiment experiment, const Registry& registry, RunOptions options);
+  ~Run();
+
+  // The run directory <output>/<name>/seed-<seed>.
+  const std::filesystem::path& directory() const noexcept { return dir_; }
+  const Experiment& experiment() const noexcept { return ex_; }
+
+  // Creates a fresh run directory (error if it already holds a run), or opens an existing one and
+  // loads its checkpoint.
+  void create_directory();
+  void open_for_resume();
+
+  // Runs until the configured number of loops (or stop_after_loop). Returns true when finished.
+  bool run();
+
+  // Accessors for tests and tools.
+  const Archive& archive() const { return *archive_; }
+  const Dataset& dataset() const { return *dataset_; }
+  const Environment& environment() const { return *env_; }
+  const Descriptor& descriptor() const { return *desc_; }
+  const PolicyShape& policy_shape() const { return shape_; }
+
+ private:
+  void loop_zero();
+  void map_elites_loop(int loop);
+  void fit_representation(int loop);
+  void fill_reconstruction(Offspring& off, Vector& recn) const;
+  void write_metrics_row(int loop, int iteration, const Offspring* off, std::size_t added, std::size_t replaced,
+                         std::size_t invalid);
+  void write_checkpoint(int loop);
+  void load_checkpoint();
+  void write_snapshot(const std::filesystem::path& path) const;
+  void write_provenance() const;
+  void set_status(const std::string& status) const;
+  void report(int loop, int iteration, bool loop_finished, const std::string& note = {});
+  double wall_seconds() const;
+
+  Experiment ex_;
+  RunOptions opt_;
+  std::filesystem::path dir_;
+  PolicyShape shape_;
+  Owned<Environment> env_;
+  Owned<Descriptor> desc_;
+  Owned<Representation> repr_;
+  Owned<Mutator> mutator_;
+  Owned<Mutator> initial_;
+  std::unique_ptr<Evaluator> evaluator_;
+  std::unique_ptr<Archive> archive_;
+  std::unique_ptr<Dataset> dataset_;
+  std::vector<std::string> plugin_lines_;
+  std::vector<std::string> mutator_metric_names_;
+
+  int next_loop_ = 0;
+  std::uint64_t evaluations_ = 0;
+  std::uint64_t session_evaluations_ = 0;
+  double wall_before_ = 0.0;   // wall seconds of earlier sessions (resume)
+  double train_seconds_ = 0.0;
+  double session_start_ = 0.0;
+};
+
+}  // namespace qd::runtime
