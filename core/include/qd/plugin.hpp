@@ -22,6 +22,7 @@
 #include <qd/config.hpp>
 #include <qd/descriptor.hpp>
 #include <qd/environment.hpp>
+#include <qd/errors.hpp>
 #include <qd/export.hpp>
 #include <qd/mutator.hpp>
 #include <qd/representation.hpp>

@@ -63,16 +63,18 @@ std::string join(const std::vector<std::string>& v) {
   return s.empty() ? "(none)" : s;
 }
 
-// Merges `over` into `base`: tables merge key by key, everything else is replaced.
-void deep_merge(toml::table& base, const toml::table& over) {
-  for (const auto& [k, v] : over) {
+// Merges `over` into `base`: tables merge key by key, everything else is replaced. Nodes are
+// moved, never copied: toml++ keeps a node's source location only through moves, and every error
+// message needs it.
+void deep_merge(toml::table& base, toml::table&& over) {
+  for (auto&& [k, v] : over) {
     if (auto* sub = v.as_table()) {
       if (auto* existing = base.get(k); existing && existing->is_table()) {
-        deep_merge(*existing->as_table(), *sub);
+        deep_merge(*existing->as_table(), std::move(*sub));
         continue;
       }
     }
-    base.insert_or_assign(k, v);
+    base.insert_or_assign(k, std::move(v));
   }
 }
 
@@ -113,7 +115,7 @@ toml::table parse_file(const fs::path& file, int depth) {
     }
   }
   t.erase("include");
-  deep_merge(merged, t);
+  deep_merge(merged, std::move(t));
   return merged;
 }
 
@@ -322,8 +324,12 @@ void Document::apply_override(const std::string& assignment) {
     parsed = toml::parse("v = " + value, source);
   } catch (const toml::parse_error&) {
     // Bare words are strings: --set mutator.type=iso
-    parsed = toml::parse("v = \"\"", source);
-    parsed.insert_or_assign("v", value);
+    std::string quoted = "\"";
+    for (char c : value) {
+      if (c == '"' || c == '\\') quoted += '\\';
+      quoted += c;
+    }
+    parsed = toml::parse("v = " + quoted + "\"", source);
   }
   std::vector<std::string> parts;
   for (std::size_t pos = 0;;) {
@@ -343,7 +349,7 @@ void Document::apply_override(const std::string& assignment) {
     t = n->as_table();
   }
   if (parts.back().empty()) throw InputError(source + ": empty key");
-  t->insert_or_assign(parts.back(), *parsed.get("v"));
+  t->insert_or_assign(parts.back(), std::move(*parsed.get("v")));
 }
 
 std::vector<std::string> Document::plugin_paths() const {

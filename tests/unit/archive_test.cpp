@@ -1,0 +1,66 @@
+#include <qd/archive.hpp>
+#include <qd/errors.hpp>
+
+#include <gtest/gtest.h>
+
+#include <set>
+#include <sstream>
+
+using namespace qd;
+
+namespace {
+const double kP1[3] = {1, 2, 3}, kP2[3] = {4, 5, 6}, kD[2] = {0.5, -0.5};
+}
+
+TEST(Archive, InsertionOutcomes) {
+  Archive a(10, 3, 2);
+  EXPECT_EQ(a.offer(4, kP1, kD, 1.0, 0.1, false), Insertion::kAdded);
+  EXPECT_EQ(a.offer(4, kP2, kD, 2.0, 0.2, false), Insertion::kRejected);
+  EXPECT_EQ(a.params(0)[0], 1.0);
+  EXPECT_EQ(a.offer(4, kP2, kD, 2.0, 0.2, true), Insertion::kReplaced);
+  EXPECT_EQ(a.params(0)[2], 6.0);
+  EXPECT_EQ(a.size(), 1u);
+  EXPECT_DOUBLE_EQ(a.coverage(), 0.1);
+  EXPECT_EQ(a.slot_of(4), 0);
+  EXPECT_EQ(a.slot_of(3), -1);
+}
+
+TEST(Archive, SelectionWithoutReplacementWhenLargeEnough) {
+  Archive a(100, 3, 2);
+  for (int c = 0; c < 50; ++c) a.offer(c, kP1, kD, 0, c, false);
+  Rng r(1, Stream::kSelection);
+  Parents p;
+  a.select(50, r, p);
+  std::set<std::int64_t> cells(p.cells.begin(), p.cells.end());
+  EXPECT_EQ(cells.size(), 50u);  // a permutation of all elites
+  for (std::size_t i = 0; i < 50; ++i) EXPECT_EQ(p.recn_error[static_cast<Eigen::Index>(i)], static_cast<double>(p.cells[i]));
+}
+
+TEST(Archive, SelectionWithReplacementWhenSmall) {
+  Archive a(100, 3, 2);
+  for (int c = 0; c < 5; ++c) a.offer(c, kP1, kD, 0, 0, false);
+  Rng r(2, Stream::kSelection);
+  Parents p;
+  a.select(200, r, p);
+  EXPECT_EQ(p.cells.size(), 200u);
+  std::set<std::int64_t> cells(p.cells.begin(), p.cells.end());
+  EXPECT_EQ(cells.size(), 5u);
+}
+
+TEST(Archive, MeanReconstructionErrorAndRoundTrip) {
+  Archive a(10, 3, 2);
+  a.offer(1, kP1, kD, 0, 1.0, false);
+  a.offer(7, kP2, kD, 0, 3.0, false);
+  EXPECT_DOUBLE_EQ(a.mean_recn_error(), 2.0);
+  std::stringstream s;
+  a.save(s);
+  Archive b(10, 3, 2);
+  b.load(s);
+  EXPECT_EQ(b.size(), 2u);
+  EXPECT_EQ(b.slot_of(7), 1);
+  EXPECT_EQ(b.params(1)[1], 5.0);
+  std::stringstream s2;
+  a.save(s2);
+  Archive wrong(11, 3, 2);
+  EXPECT_THROW(wrong.load(s2), StateError);
+}
