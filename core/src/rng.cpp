@@ -52,29 +52,60 @@ std::uint64_t Rng::below(std::uint64_t n) noexcept {
   return static_cast<std::uint64_t>(m >> 64);
 }
 
+namespace {
+
+// Ziggurat tables (Marsaglia & Tsang, "The Ziggurat Method for Generating Random Variables", 2000):
+// 128 layers of equal area v under the right half of f(x) = exp(-x²/2); layer 0 is the base strip
+// plus the tail beyond r. x[i] is the right edge of layer i's rectangle, f[i] = f(x[i]).
+struct ZigguratTables {
+  static constexpr int kLayers = 128;
+  static constexpr double kR = 3.442619855899;
+  static constexpr double kV = 9.91256303526217e-3;
+  double x[kLayers + 1];
+  double f[kLayers + 1];
+  ZigguratTables() {
+    x[0] = kV / std::exp(-0.5 * kR * kR);
+    x[1] = kR;
+    for (int i = 1; i < kLayers - 1; ++i) x[i + 1] = std::sqrt(-2.0 * std::log(kV / x[i] + std::exp(-0.5 * x[i] * x[i])));
+    x[kLayers] = 0.0;
+    for (int i = 0; i <= kLayers; ++i) f[i] = std::exp(-0.5 * x[i] * x[i]);
+  }
+};
+const ZigguratTables& zig() {
+  static const ZigguratTables t;
+  return t;
+}
+
+}  // namespace
+
 double Rng::normal() noexcept {
-  // Marsaglia polar method. The second value of the pair is dropped rather than cached, so the
-  // whole generator state stays four words; fill_normal() uses both values of each pair.
+  const ZigguratTables& z = zig();
   for (;;) {
-    const double u = 2.0 * uniform() - 1.0;
-    const double v = 2.0 * uniform() - 1.0;
-    const double s = u * u + v * v;
-    if (s > 0.0 && s < 1.0) return u * std::sqrt(-2.0 * std::log(s) / s);
+    const std::uint64_t bits = next();
+    const int i = static_cast<int>(bits & 0x7F);                         // layer: low 7 bits
+    const double u = 2.0 * static_cast<double>(bits >> 11) * 0x1.0p-53 - 1.0;  // signed: top 53 bits
+    const double xx = u * z.x[i];
+    if (std::fabs(u) < z.x[i + 1] / z.x[i]) return xx;  // inside the rectangle: ~99% of draws
+    if (i == 0) {
+      // Tail beyond r (Marsaglia 1964).
+      double a, b;
+      do {
+        a = -std::log(1.0 - uniform()) / ZigguratTables::kR;
+        b = -std::log(1.0 - uniform());
+      } while (2.0 * b < a * a);
+      return u < 0 ? -(ZigguratTables::kR + a) : ZigguratTables::kR + a;
+    }
+    // Wedge between the rectangle and the curve.
+    if (z.f[i] + uniform() * (z.f[i + 1] - z.f[i]) < std::exp(-0.5 * xx * xx)) return xx;
   }
 }
 
 void Rng::fill_normal(double* out, std::size_t n, double scale) noexcept {
-  std::size_t i = 0;
-  while (i + 1 < n) {
-    const double u = 2.0 * uniform() - 1.0;
-    const double v = 2.0 * uniform() - 1.0;
-    const double s = u * u + v * v;
-    if (s <= 0.0 || s >= 1.0) continue;
-    const double f = scale * std::sqrt(-2.0 * std::log(s) / s);
-    out[i++] = u * f;
-    out[i++] = v * f;
-  }
-  if (i < n) out[i] = scale * normal();
+  for (std::size_t i = 0; i < n; ++i) out[i] = scale * normal();
+}
+
+void Rng::add_normal(double* out, std::size_t n, double scale) noexcept {
+  for (std::size_t i = 0; i < n; ++i) out[i] += scale * normal();
 }
 
 void Rng::fill_uniform(double* out, std::size_t n, double lo, double hi) noexcept {

@@ -59,3 +59,22 @@ TEST(Rng, UniformMeanAndBounds) {
   }
   EXPECT_NEAR(mean / n, 0.0, 5 * std::sqrt(1.0 / 3.0 / n));
 }
+
+TEST(Rng, NormalTailsAndKurtosisMatchTheGaussian) {
+  // The Ziggurat's tail and wedge branches are rare; check them through tail mass and kurtosis.
+  Rng r(17, Stream::kPlugin);
+  const int n = 2000000;
+  double m4 = 0, beyond3 = 0, beyond_r = 0;
+  for (int i = 0; i < n; ++i) {
+    const double v = r.normal();
+    m4 += v * v * v * v;
+    if (std::fabs(v) > 3.0) ++beyond3;
+    if (std::fabs(v) > 3.442619855899) ++beyond_r;
+  }
+  m4 /= n;
+  // E[x^4] = 3, Var[x^4] = 105 - 9 = 96.
+  EXPECT_NEAR(m4, 3.0, 5 * std::sqrt(96.0 / n));
+  const double p3 = 0.0026997960632601866, pr = 0.0005761085123916405;  // P(|x| > 3), P(|x| > r)
+  EXPECT_NEAR(beyond3 / n, p3, 5 * std::sqrt(p3 * (1 - p3) / n));
+  EXPECT_NEAR(beyond_r / n, pr, 5 * std::sqrt(pr * (1 - pr) / n));
+}

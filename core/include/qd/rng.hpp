@@ -5,7 +5,7 @@
 // 1 worker, N workers or N MPI ranks, and what lets a checkpoint resume without saving RNG state.
 //
 // Engine: xoshiro256++ (Blackman & Vigna), seeded through SplitMix64 from a hash of the key.
-// Normals: Marsaglia's polar method. Both are implemented here, so the sequence does not depend on
+// Normals: the Ziggurat method (Marsaglia & Tsang 2000). Both are implemented here, so the sequence does not depend on
 // the standard library's distribution implementations.
 #pragma once
 
@@ -64,6 +64,8 @@ class QD_EXPORT Rng {
   double normal() noexcept;
   // out[i] = scale * N(0, 1), i < n.
   void fill_normal(double* out, std::size_t n, double scale = 1.0) noexcept;
+  // out[i] += scale * N(0, 1), i < n (same draws as fill_normal).
+  void add_normal(double* out, std::size_t n, double scale = 1.0) noexcept;
   // out[i] = U(lo, hi), i < n.
   void fill_uniform(double* out, std::size_t n, double lo, double hi) noexcept;
 

@@ -58,7 +58,14 @@ void write_file_atomic(const fs::path& path, const std::string& content) {
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) throw Error("cannot create " + tmp.string());
   write_all(fd, content, tmp);
-  if (::fsync(fd) != 0 || ::close(fd) != 0) throw Error("cannot flush " + tmp.string());
+  if (::close(fd) != 0) throw Error("cannot write " + tmp.string());
+  commit_file(tmp, path);
+}
+
+void commit_file(const fs::path& tmp, const fs::path& path) {
+  const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0 || ::fsync(fd) != 0) throw Error("cannot flush " + tmp.string());
+  ::close(fd);
   std::error_code ec;
   fs::rename(tmp, path, ec);
   if (ec) throw Error("cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message());

@@ -16,6 +16,9 @@ void append_int(std::string& out, std::int64_t v);
 // Readers see either the old file or the new one, never a torn write.
 void write_file_atomic(const std::filesystem::path& path, const std::string& content);
 
+// Makes a finished temporary file durable and moves it over `path` (fsync, rename, fsync dir).
+void commit_file(const std::filesystem::path& tmp, const std::filesystem::path& path);
+
 // Appends text and flushes it to the OS (so a killed run keeps every completed row).
 void append_to_file(const std::filesystem::path& path, const std::string& text);
 

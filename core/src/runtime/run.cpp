@@ -459,6 +459,9 @@ void Run::write_snapshot(const fs::path& path) const {
   if (ex_.settings.snapshot_parameters)
     for (std::size_t k = 0; k < P; ++k) out += ",solution_" + std::to_string(k);
   out += '\n';
+  const fs::path tmp = path.string() + ".tmp";
+  std::ofstream file(tmp, std::ios::binary | std::ios::trunc);
+  if (!file) throw Error("cannot create " + tmp.string());
   // Rows in cell order, so two archives with the same content give the same file.
   std::vector<std::size_t> slots(archive_->size());
   std::iota(slots.begin(), slots.end(), std::size_t{0});
@@ -479,12 +482,25 @@ void Run::write_snapshot(const fs::path& path) const {
         append_number(out, archive_->params(slot)[k]);
       }
     out += '\n';
+    if (out.size() > (std::size_t{1} << 20)) {
+      file.write(out.data(), static_cast<std::streamsize>(out.size()));
+      out.clear();
+    }
   }
-  write_file_atomic(path, out);
+  file.write(out.data(), static_cast<std::streamsize>(out.size()));
+  file.close();
+  if (!file) throw Error("cannot write " + tmp.string());
+  commit_file(tmp, path);
 }
 
 void Run::write_checkpoint(int loop) {
-  std::ostringstream o(std::ios::binary);
+  // Streamed straight to a temporary file (the state can be hundreds of MB), then committed.
+  const fs::path tmp = dir_ / (std::string(kCheckpointFile) + ".tmp");
+  std::vector<char> buffer(std::size_t{1} << 20);
+  std::ofstream o;
+  o.rdbuf()->pubsetbuf(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+  o.open(tmp, std::ios::binary | std::ios::trunc);
+  if (!o) throw Error("cannot create " + tmp.string());
   o.write(kCheckpointMagic, sizeof(kCheckpointMagic));
   state::write_string(o, ex_.resolved_toml);
   state::write<std::int32_t>(o, loop);
@@ -511,7 +527,9 @@ void Run::write_checkpoint(int loop) {
   blob(*repr_);
   blob(*mutator_);
   blob(*initial_);
-  write_file_atomic(dir_ / kCheckpointFile, o.str());
+  o.close();
+  if (!o) throw Error("cannot write " + tmp.string());
+  commit_file(tmp, dir_ / kCheckpointFile);
 }
 
 void Run::load_checkpoint() {

@@ -1,0 +1,513 @@
+// Walker and kicker episodes: gym 0.11's BipedalWalker robot on Box2D 2.4.1 (spec 1.0, 1.3-1.6).
+#include "bipedal.hpp"
+
+#include <box2d/box2d.h>
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+
+namespace qd::bipedal {
+namespace {
+
+constexpr float kTimeStep = 1.0f / 50.0f;
+constexpr double kFps = 50.0;
+constexpr int kVelocityIterations = 6 * 30;
+constexpr int kPositionIterations = 2 * 30;
+constexpr double kScale = 30.0;
+constexpr float kMotorsTorque = 80.0f;
+constexpr float kSpeedHip = 4.0f;
+constexpr float kSpeedKnee = 6.0f;
+constexpr double kLidarRange = 160.0 / kScale;
+constexpr double kLegDown = -8.0 / kScale;
+constexpr double kLegW = 8.0 / kScale;
+constexpr double kLegH = 34.0 / kScale;
+constexpr double kViewportW = 600.0;
+constexpr double kViewportH = 400.0;
+constexpr int kTerrainGrass = 10;
+constexpr double kRightLimit = (kTerrainLength - kTerrainGrass) * kTerrainStep;  // 88.667
+constexpr float kWalkerFriction = 2.5f;
+constexpr float kKickerFriction = 0.9f;
+constexpr double kInitialPush = 2.3627539207;  // U(-5, 5) of gym's seeding for seed_task = 100
+constexpr double kBallRadius = 10.0 / kScale;
+constexpr double kMixScale = 100.0;
+constexpr int kKickerActiveSteps = 100;  // the action is zeroed once the counter exceeds this
+constexpr int kLidarRays = 10;
+
+// Collision filters (spec 1.3, 1.5). Ground is category 1 with the default mask everywhere.
+constexpr std::uint16_t kGroundCategory = 0x0001;
+constexpr std::uint16_t kWalkerBodyCategory = 0x0020, kWalkerBodyMask = 0x0001;
+constexpr std::uint16_t kKickerBodyCategory = 0x0002, kKickerBodyMask = 0x0005;
+constexpr std::uint16_t kBallCategory = 0x0004, kBallMask = 0x0003;
+
+// pybox2d (Box2D 2.3) motor setters wake both bodies unconditionally, which only restarts bodies
+// that are asleep. 2.4.1's setters instead wake (and reset the sleep timer of) both bodies whenever
+// the value changes, so a robot whose action jitters would never fall asleep and the walker's
+// |v| <= 0.0005 rule would not fire as in the reference. Writing the members directly and waking
+// sleeping bodies ourselves reproduces 2.3. The pointer-to-member through a derived class is the
+// standard-conforming way to reach protected members.
+struct MotorAccess : b2RevoluteJoint {
+  static void set(b2RevoluteJoint* joint, float speed, float torque) {
+    joint->*(&MotorAccess::m_motorSpeed) = speed;
+    joint->*(&MotorAccess::m_maxMotorTorque) = torque;
+  }
+};
+
+void wake_if_asleep(b2Body* body) {
+  if (!body->IsAwake()) body->SetAwake(true);
+}
+
+class ContactFlags final : public b2ContactListener {
+ public:
+  b2Body* hull = nullptr;
+  b2Body* legs[4] = {nullptr, nullptr, nullptr, nullptr};
+  b2Body* ball = nullptr;  // kicker only
+
+  bool game_over = false;
+  bool ground_contact[2] = {false, false};  // lower legs legs[1], legs[3]
+  bool ball_landed = false;
+  bool ball_kicked = false;
+  bool ball_flying = false;
+  bool kick_start = true;
+
+  void BeginContact(b2Contact* contact) override { update(contact, true); }
+  void EndContact(b2Contact* contact) override { update(contact, false); }
+
+ private:
+  bool is_biped(const b2Body* b) const {
+    return b == hull || b == legs[0] || b == legs[1] || b == legs[2] || b == legs[3];
+  }
+
+  void update(b2Contact* contact, bool begin) {
+    b2Body* a = contact->GetFixtureA()->GetBody();
+    b2Body* b = contact->GetFixtureB()->GetBody();
+    if (begin && (a == hull || b == hull)) game_over = true;
+    if (a == legs[1] || b == legs[1]) ground_contact[0] = begin;
+    if (a == legs[3] || b == legs[3]) ground_contact[1] = begin;
+    if (ball != nullptr && (a == ball || b == ball)) {
+      const b2Body* other = a == ball ? b : a;
+      if (other->GetType() == b2_staticBody) {
+        ball_landed = begin;
+      } else if (is_biped(other)) {
+        if (begin) {
+          kick_start = false;
+          ball_flying = false;
+        } else {
+          ball_kicked = true;
+        }
+      }
+    }
+  }
+};
+
+// Closest ground hit; other categories are ignored (returning -1 skips the fixture).
+class LidarRay final : public b2RayCastCallback {
+ public:
+  float fraction = 1.0f;
+  float ReportFixture(b2Fixture* fixture, const b2Vec2&, const b2Vec2&, float hit_fraction) override {
+    if ((fixture->GetFilterData().categoryBits & 1) == 0) return -1.0f;
+    fraction = hit_fraction;
+    return hit_fraction;
+  }
+};
+
+struct LidarDirections {
+  double dx[kLidarRays];
+  double dy[kLidarRays];
+  LidarDirections() {
+    for (int i = 0; i < kLidarRays; ++i) {
+      dx[i] = std::sin(1.5 * i / 10.0) * kLidarRange;
+      dy[i] = -std::cos(1.5 * i / 10.0) * kLidarRange;
+    }
+  }
+};
+const LidarDirections& lidar_directions() {
+  static const LidarDirections directions;
+  return directions;
+}
+
+void add_terrain(b2World& world, const double* heights, float friction) {
+  b2BodyDef body_def;  // static at the origin; the edge carries world coordinates
+  b2EdgeShape edge;
+  b2FixtureDef fixture;
+  fixture.shape = &edge;
+  fixture.friction = friction;
+  fixture.filter.categoryBits = kGroundCategory;
+  for (int i = 0; i + 1 < kTerrainLength; ++i) {
+    edge.SetTwoSided(b2Vec2(static_cast<float>(i * kTerrainStep), static_cast<float>(heights[i])),
+                     b2Vec2(static_cast<float>((i + 1) * kTerrainStep), static_cast<float>(heights[i + 1])));
+    world.CreateBody(&body_def)->CreateFixture(&fixture);
+  }
+}
+
+const double* flat_heights() {
+  static const std::array<double, kTerrainLength> heights = [] {
+    std::array<double, kTerrainLength> h{};
+    h.fill(kTerrainHeight);
+    return h;
+  }();
+  return heights.data();
+}
+
+class Scene {
+ public:
+  explicit Scene(const EpisodeOptions& options) : task_(options.task), world_(b2Vec2(0.0f, -10.0f)) {
+    const bool walker = task_ == Task::kWalker;
+    world_.SetContactListener(&contacts_);
+    add_terrain(world_, walker ? walker_terrain_heights().data() : flat_heights(),
+                walker ? kWalkerFriction : kKickerFriction);
+    const std::uint16_t category = walker ? kWalkerBodyCategory : kKickerBodyCategory;
+    const std::uint16_t mask = walker ? kWalkerBodyMask : kKickerBodyMask;
+    const double init_x = walker ? kWalkerStartX : kKickerStartX;
+    const double init_y = kTerrainHeight + 2 * kLegH;
+
+    b2BodyDef hull_def;
+    hull_def.type = b2_dynamicBody;
+    hull_def.position.Set(static_cast<float>(init_x), static_cast<float>(init_y));
+    hull_ = world_.CreateBody(&hull_def);
+    const double hull_poly[5][2] = {{-30, 9}, {6, 9}, {34, 1}, {34, -8}, {-30, -8}};
+    b2Vec2 vertices[5];
+    for (int k = 0; k < 5; ++k)
+      vertices[k].Set(static_cast<float>(hull_poly[k][0] / kScale), static_cast<float>(hull_poly[k][1] / kScale));
+    b2PolygonShape hull_shape;
+    hull_shape.Set(vertices, 5);
+    b2FixtureDef hull_fixture;
+    hull_fixture.shape = &hull_shape;
+    hull_fixture.density = 5.0f;
+    hull_fixture.friction = 0.1f;
+    hull_fixture.restitution = 0.0f;
+    hull_fixture.filter.categoryBits = category;
+    hull_fixture.filter.maskBits = mask;
+    hull_->CreateFixture(&hull_fixture);
+    if (walker) hull_->ApplyForceToCenter(b2Vec2(static_cast<float>(kInitialPush), 0.0f), true);
+
+    b2PolygonShape upper_shape, lower_shape;
+    upper_shape.SetAsBox(static_cast<float>(kLegW / 2), static_cast<float>(kLegH / 2));
+    lower_shape.SetAsBox(static_cast<float>(0.8 * kLegW / 2), static_cast<float>(kLegH / 2));
+    b2FixtureDef leg_fixture;  // friction stays at the default 0.2
+    leg_fixture.density = 1.0f;
+    leg_fixture.restitution = 0.0f;
+    leg_fixture.filter.categoryBits = category;
+    leg_fixture.filter.maskBits = mask;
+
+    for (int side = 0; side < 2; ++side) {
+      const int i = side == 0 ? -1 : 1;
+      b2BodyDef leg_def;
+      leg_def.type = b2_dynamicBody;
+      leg_def.angle = static_cast<float>(i * 0.05);
+      leg_def.position.Set(static_cast<float>(init_x), static_cast<float>(init_y - kLegH / 2 - kLegDown));
+      b2Body* upper = world_.CreateBody(&leg_def);
+      leg_fixture.shape = &upper_shape;
+      upper->CreateFixture(&leg_fixture);
+
+      b2RevoluteJointDef hip;  // filled field by field like gym (reference angle 0, no Initialize)
+      hip.bodyA = hull_;
+      hip.bodyB = upper;
+      hip.localAnchorA.Set(0.0f, static_cast<float>(kLegDown));
+      hip.localAnchorB.Set(0.0f, static_cast<float>(kLegH / 2));
+      hip.enableMotor = true;
+      hip.enableLimit = true;
+      hip.maxMotorTorque = kMotorsTorque;
+      hip.motorSpeed = static_cast<float>(i);
+      hip.lowerAngle = -0.8f;
+      hip.upperAngle = 1.1f;
+      joints_[2 * side] = static_cast<b2RevoluteJoint*>(world_.CreateJoint(&hip));
+
+      leg_def.position.Set(static_cast<float>(init_x), static_cast<float>(init_y - kLegH * 3 / 2 - kLegDown));
+      b2Body* lower = world_.CreateBody(&leg_def);
+      leg_fixture.shape = &lower_shape;
+      lower->CreateFixture(&leg_fixture);
+
+      b2RevoluteJointDef knee;
+      knee.bodyA = upper;
+      knee.bodyB = lower;
+      knee.localAnchorA.Set(0.0f, static_cast<float>(-kLegH / 2));
+      knee.localAnchorB.Set(0.0f, static_cast<float>(kLegH / 2));
+      knee.enableMotor = true;
+      knee.enableLimit = true;
+      knee.maxMotorTorque = kMotorsTorque;
+      knee.motorSpeed = 1.0f;
+      knee.lowerAngle = -1.6f;
+      knee.upperAngle = -0.1f;
+      joints_[2 * side + 1] = static_cast<b2RevoluteJoint*>(world_.CreateJoint(&knee));
+
+      legs_[2 * side] = upper;
+      legs_[2 * side + 1] = lower;
+    }
+
+    if (!walker) {
+      b2BodyDef ball_def;
+      ball_def.type = b2_dynamicBody;
+      ball_def.position.Set(static_cast<float>(kBallStartX), static_cast<float>(kTerrainHeight + 2 * kBallRadius));
+      ball_def.linearDamping = 1.0f;
+      ball_ = world_.CreateBody(&ball_def);
+      b2CircleShape circle;
+      circle.m_radius = static_cast<float>(kBallRadius);
+      b2FixtureDef ball_fixture;
+      ball_fixture.shape = &circle;
+      ball_fixture.density = 0.5f;
+      ball_fixture.friction = 0.1f;
+      ball_fixture.restitution = 0.7f;
+      ball_fixture.filter.categoryBits = kBallCategory;
+      ball_fixture.filter.maskBits = kBallMask;
+      ball_->CreateFixture(&ball_fixture);
+    }
+
+    contacts_.hull = hull_;
+    for (int k = 0; k < 4; ++k) contacts_.legs[k] = legs_[k];
+    contacts_.ball = ball_;
+  }
+
+  // gym's step(): motors from the action (kicker: zeroed after the first 101 policy calls), one
+  // world step, lidar. `action` is overwritten with the action actually applied.
+  void step(float* action) {
+    if (task_ == Task::kKicker) {
+      if (counter_ > kKickerActiveSteps) std::fill(action, action + kActionSize, 0.0f);
+      ++counter_;
+    }
+    for (int j = 0; j < kActionSize; ++j) {
+      const float a = action[j];
+      const float sign = a > 0.0f ? 1.0f : (a < 0.0f ? -1.0f : 0.0f);
+      const float speed = ((j % 2) == 0 ? kSpeedHip : kSpeedKnee) * sign;
+      const float torque = kMotorsTorque * std::min(std::fabs(a), 1.0f);
+      wake_if_asleep(joints_[j]->GetBodyA());
+      wake_if_asleep(joints_[j]->GetBodyB());
+      MotorAccess::set(joints_[j], speed, torque);
+    }
+    world_.Step(kTimeStep, kVelocityIterations, kPositionIterations);
+
+    const b2Vec2 pos = hull_->GetPosition();
+    const LidarDirections& dir = lidar_directions();
+    for (int i = 0; i < kLidarRays; ++i) {
+      LidarRay ray;
+      const b2Vec2 p2(static_cast<float>(pos.x + dir.dx[i]), static_cast<float>(pos.y + dir.dy[i]));
+      world_.RayCast(&ray, pos, p2);
+      lidar_[i] = ray.fraction;
+    }
+  }
+
+  // Writes the observation; returns false when it is not finite.
+  bool observe(bool mix_scale, double* obs) const {
+    const b2Vec2 vel = hull_->GetLinearVelocity();
+    const b2Vec2 pos = hull_->GetPosition();
+    obs[0] = hull_->GetAngle();
+    obs[1] = 2.0 * hull_->GetAngularVelocity() / kFps;
+    obs[2] = 0.3 * vel.x * (kViewportW / kScale) / kFps;
+    obs[3] = 0.3 * vel.y * (kViewportH / kScale) / kFps;
+    obs[4] = joints_[0]->GetJointAngle();
+    obs[5] = joints_[0]->GetJointSpeed() / kSpeedHip;
+    obs[6] = joints_[1]->GetJointAngle() + 1.0;
+    obs[7] = joints_[1]->GetJointSpeed() / kSpeedKnee;
+    obs[8] = contacts_.ground_contact[0] ? 1.0 : 0.0;
+    obs[9] = joints_[2]->GetJointAngle();
+    obs[10] = joints_[2]->GetJointSpeed() / kSpeedHip;
+    obs[11] = joints_[3]->GetJointAngle() + 1.0;
+    obs[12] = joints_[3]->GetJointSpeed() / kSpeedKnee;
+    obs[13] = contacts_.ground_contact[1] ? 1.0 : 0.0;
+    const double s = mix_scale ? kMixScale : 1.0;
+    for (int i = 0; i < kLidarRays; ++i) obs[14 + i] = s * lidar_[i];
+    obs[24] = s * pos.x;
+    obs[25] = s * pos.y;
+    int n = kWalkerObservationSize;
+    if (ball_ != nullptr) {
+      const b2Vec2 bp = ball_->GetPosition();
+      const b2Vec2 bv = ball_->GetLinearVelocity();
+      obs[26] = s * bp.x;
+      obs[27] = s * bp.y;
+      obs[28] = s * bv.x;
+      obs[29] = s * bv.y;
+      n = kKickerObservationSize;
+    }
+    for (int i = 0; i < n; ++i)
+      if (!std::isfinite(obs[i])) return false;
+    return true;
+  }
+
+  Termination walker_done() const {
+    const b2Vec2 pos = hull_->GetPosition();
+    if (contacts_.game_over) return Termination::kHullContact;
+    if (pos.x < 0.0) return Termination::kLeftEdge;
+    if (pos.x > kRightLimit) return Termination::kRightEdge;
+    const b2Vec2 v = hull_->GetLinearVelocity();
+    if (std::hypot(static_cast<double>(v.x), static_cast<double>(v.y)) <= 0.0005) return Termination::kHullStill;
+    return Termination::kMaxSteps;
+  }
+
+  // The kicker discards gym's done and recomputes it (spec 1.5).
+  Termination kicker_done() {
+    const b2Vec2 bp = ball_->GetPosition();
+    const b2Vec2 bv = ball_->GetLinearVelocity();
+    const b2Vec2 hv = hull_->GetLinearVelocity();
+    const bool ball_slow = std::fabs(static_cast<double>(bv.x)) <= 0.25;
+    if (contacts_.ball_kicked && bv.y > 0.1 && !contacts_.ball_landed) contacts_.ball_flying = true;
+    if (ball_slow && std::fabs(std::fabs(static_cast<double>(bp.x)) - kBallStartX) > 1e-5)
+      return Termination::kBallMoved;
+    if (ball_slow && std::hypot(static_cast<double>(hv.x), static_cast<double>(hv.y)) <= 0.05)
+      return Termination::kAllStill;
+    if (contacts_.ball_flying && contacts_.ball_landed) return Termination::kBallLanded;
+    return Termination::kMaxSteps;
+  }
+
+  // Walker gym reward for the last step (fitness only; unused by the algorithms).
+  double walker_reward(const float* action, double angle) {
+    const double shaping = 130.0 * hull_->GetPosition().x / kScale - 5.0 * std::fabs(angle);
+    double reward = has_shaping_ ? shaping - prev_shaping_ : 0.0;
+    prev_shaping_ = shaping;
+    has_shaping_ = true;
+    for (int j = 0; j < kActionSize; ++j)
+      reward -= 0.00035 * kMotorsTorque * std::min(std::fabs(static_cast<double>(action[j])), 1.0);
+    if (contacts_.game_over || hull_->GetPosition().x < 0.0) reward = -100.0;
+    return reward;
+  }
+
+  void record(Trace& trace, const float* action) const {
+    const b2Vec2 pos = hull_->GetPosition();
+    const b2Vec2 vel = hull_->GetLinearVelocity();
+    const double hip_gap = std::fabs(static_cast<double>(joints_[0]->GetJointAngle()) - joints_[2]->GetJointAngle());
+    const double contact_l = contacts_.ground_contact[0] ? 1.0 : 0.0;
+    const double contact_r = contacts_.ground_contact[1] ? 1.0 : 0.0;
+    if (task_ == Task::kWalker) {
+      trace.main.push(pos.x, pos.y, hull_->GetAngle());
+      trace.aux.push(contact_l, contact_r, hip_gap, vel.x, vel.y);
+    } else {
+      const b2Vec2 bp = ball_->GetPosition();
+      trace.main.push(bp.x, bp.y);
+      trace.aux.push(pos.x, pos.y, hull_->GetAngle(), contact_l, contact_r, hip_gap, vel.x, vel.y, action[0], action[1],
+                     action[2], action[3]);
+    }
+  }
+
+ private:
+  Task task_;
+  ContactFlags contacts_;  // declared first so that it outlives the world that calls it
+  b2World world_;
+  b2Body* hull_ = nullptr;
+  b2Body* legs_[4] = {nullptr, nullptr, nullptr, nullptr};
+  b2RevoluteJoint* joints_[4] = {nullptr, nullptr, nullptr, nullptr};
+  b2Body* ball_ = nullptr;
+  float lidar_[kLidarRays] = {};
+  int counter_ = -1;  // kicker action counter; the reset step moves it to 0
+  bool has_shaping_ = false;
+  double prev_shaping_ = 0.0;
+};
+
+}  // namespace
+
+int observation_size(Task task) noexcept {
+  return task == Task::kWalker ? kWalkerObservationSize : kKickerObservationSize;
+}
+
+void warm_up_box2d() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    b2World world(b2Vec2(0.0f, -10.0f));
+    b2BodyDef ground_def;
+    b2Body* ground = world.CreateBody(&ground_def);
+    b2EdgeShape edge;
+    edge.SetTwoSided(b2Vec2(-5.0f, 0.0f), b2Vec2(5.0f, 0.0f));
+    ground->CreateFixture(&edge, 0.0f);
+    b2BodyDef ball_def;
+    ball_def.type = b2_dynamicBody;
+    ball_def.position.Set(0.0f, 0.1f);
+    b2CircleShape circle;
+    circle.m_radius = 0.5f;
+    world.CreateBody(&ball_def)->CreateFixture(&circle, 1.0f);
+    world.Step(kTimeStep, 8, 3);
+  });
+}
+
+void run_episode(const EpisodeOptions& options, Policy& policy, Trace& trace, std::vector<float>* observations) {
+  const bool walker = options.task == Task::kWalker;
+  const int n_obs = observation_size(options.task);
+  trace.clear();
+  trace.main.reset(walker ? kWalkerMainCols : kKickerMainCols);
+  trace.aux.reset(walker ? kWalkerAuxCols : kKickerAuxCols);
+  const std::size_t max_rows = static_cast<std::size_t>(options.max_steps / kDownsample);
+  trace.main.data.reserve((max_rows + 2) * static_cast<std::size_t>(trace.main.cols));
+  trace.aux.data.reserve((max_rows + 2) * static_cast<std::size_t>(trace.aux.cols));
+
+  Scene scene(options);
+  double obs[kKickerObservationSize] = {};
+  float obs_f[kKickerObservationSize] = {};
+  float action[kActionSize] = {0.0f, 0.0f, 0.0f, 0.0f};
+  Termination why = Termination::kMaxSteps;
+
+  auto fail = [&](EvalStatus status, const char* message) {
+    trace.status = status;
+    trace.message = message;
+    why = Termination::kFailed;
+  };
+
+  // Reset: one world step with zero action; the first observation and trajectory row follow it.
+  scene.step(action);
+  if (!scene.observe(options.mix_scale, obs)) {
+    fail(EvalStatus::kDiverged, "non-finite state after reset");
+  } else {
+    if (walker) scene.walker_reward(action, obs[0]);  // sets gym's prev_shaping; this reward is discarded
+    scene.record(trace, action);
+    for (int step = 0; step < options.max_steps; ++step) {
+      for (int i = 0; i < n_obs; ++i) obs_f[i] = static_cast<float>(obs[i]);
+      if (observations != nullptr) observations->insert(observations->end(), obs_f, obs_f + n_obs);
+      const float* out = policy.act(obs_f);
+      for (int j = 0; j < kActionSize; ++j) action[j] = out[j];
+      if (!std::all_of(action, action + kActionSize, [](float a) { return std::isfinite(a); })) {
+        fail(EvalStatus::kInvalidAction, "policy produced a non-finite action");
+        break;
+      }
+      scene.step(action);
+      trace.steps = step + 1;
+      if (!scene.observe(options.mix_scale, obs)) {
+        fail(EvalStatus::kDiverged, "non-finite state");
+        break;
+      }
+      if (walker) {
+        trace.fitness += scene.walker_reward(action, obs[0]);
+        why = scene.walker_done();
+      } else {
+        why = scene.kicker_done();
+      }
+      const bool done = why != Termination::kMaxSteps;
+      if (step % kDownsample == 0 || done) scene.record(trace, action);
+      if (done) break;
+    }
+  }
+  // Reference quirk kept: rows after the first max_steps/20 are dropped (the final position used by
+  // the descriptors is the state after step min(k_done, 460) for 500 steps).
+  trace.main.truncate(max_rows);
+  trace.aux.truncate(max_rows);
+  trace.events.push_back(static_cast<int>(why));
+}
+
+BipedalEnvironment::BipedalEnvironment(Task task, const Config& cfg) {
+  options_.task = task;
+  options_.mix_scale = cfg.get_bool("mix_scale");
+  options_.max_steps = static_cast<int>(cfg.get_int("max_steps"));
+  warm_up_box2d();
+}
+
+EnvironmentInfo BipedalEnvironment::info() const {
+  EnvironmentInfo info;
+  info.observation_size = observation_size(options_.task);
+  info.action_size = kActionSize;
+  info.max_steps = options_.max_steps;
+  info.default_descriptor = options_.task == Task::kWalker ? "walker-gait" : "kicker-ball";
+  return info;
+}
+
+void BipedalEnvironment::rollout(const RolloutBatch& batch, Trace* traces) const {
+  if (batch.begin >= batch.end) return;
+  const PolicyShape& shape = *batch.shape;
+  if (shape.inputs() != observation_size(options_.task) || shape.outputs() != kActionSize)
+    throw std::invalid_argument("bipedal: policy shape " + std::to_string(shape.inputs()) + " -> " +
+                                std::to_string(shape.outputs()) + " does not match the environment (" +
+                                std::to_string(observation_size(options_.task)) + " -> 4)");
+  Policy policy(shape);
+  for (std::size_t i = batch.begin; i < batch.end; ++i) {
+    policy.load(batch.params->row(static_cast<Eigen::Index>(i)).data());
+    run_episode(options_, policy, traces[i]);
+  }
+}
+
+}  // namespace qd::bipedal

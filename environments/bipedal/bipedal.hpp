@@ -1,0 +1,133 @@
+// Bipedal Walker and Bipedal Kicker (spec sections 1.3-1.7, gym 0.11 physics on Box2D 2.4.1).
+//
+// The plugin classes are thin wrappers around run_episode(), which the tests and the bare-loop
+// benchmark call directly. See README.md for observation and trace layouts.
+#pragma once
+
+#include <qd/config.hpp>
+#include <qd/descriptor.hpp>
+#include <qd/environment.hpp>
+#include <qd/policy.hpp>
+#include <qd/types.hpp>
+
+#include <array>
+#include <cstdint>
+#include <ostream>
+#include <vector>
+
+namespace qd::bipedal {
+
+enum class Task { kWalker, kKicker };
+
+struct EpisodeOptions {
+  Task task = Task::kWalker;
+  bool mix_scale = false;  // x100 on the lidar/position block of the observation (spec 1.4, 1.6)
+  int max_steps = 500;
+};
+
+// Why an episode ended; stored as the single entry of Trace::events.
+enum class Termination : int {
+  kMaxSteps = 0,     // ran max_steps policy steps
+  kHullContact = 1,  // walker: the hull touched the ground (gym game_over)
+  kLeftEdge = 2,     // walker: hull x < 0
+  kRightEdge = 3,    // walker: hull x > 88.667
+  kHullStill = 4,    // walker: |v_hull| <= 0.0005
+  kBallMoved = 5,    // kicker done_a: ball slow and moved horizontally
+  kAllStill = 6,     // kicker done_b: ball slow and hull |v| <= 0.05
+  kBallLanded = 7,   // kicker bounce rule: a lofted ball landed
+  kFailed = 8,       // status != kOk (NaN action or diverged physics)
+};
+
+inline constexpr int kActionSize = 4;
+inline constexpr int kWalkerObservationSize = 26;
+inline constexpr int kKickerObservationSize = 30;
+inline constexpr int kWalkerMainCols = 3;  // hull x, y, angle
+inline constexpr int kWalkerAuxCols = 5;   // contact L, contact R, |hipL - hipR|, vx, vy
+inline constexpr int kKickerMainCols = 2;  // ball x, y
+inline constexpr int kKickerAuxCols = 12;  // hull x, y, angle, contact L, R, |hipL - hipR|, vx, vy, a0..a3
+inline constexpr int kDownsample = 20;     // a trajectory row every 20 steps (spec 1.0)
+
+inline constexpr double kTerrainStep = 14.0 / 30.0;
+inline constexpr int kTerrainLength = 200;
+inline constexpr double kTerrainHeight = 400.0 / 30.0 / 4.0;
+inline constexpr double kTerrainFull = kTerrainStep * kTerrainLength;  // 93.333, walker BD x scale
+inline constexpr double kBallStartX = kTerrainStep * 100;              // 46.667
+inline constexpr double kWalkerStartX = kTerrainStep * 100;            // 46.667
+inline constexpr double kKickerStartX = kTerrainStep * 95;             // 44.333
+
+int observation_size(Task task) noexcept;
+
+// The 200 walker terrain heights of spec Appendix A (seed_task = 100).
+const std::array<double, kTerrainLength>& walker_terrain_heights() noexcept;
+
+// Runs one episode of `policy` (parameters already loaded) into `trace` (cleared first). When
+// `observations` is given, every observation the policy saw is appended to it (the first one is
+// the observation after reset). Thread-safe: every call builds its own b2World.
+void run_episode(const EpisodeOptions& options, Policy& policy, Trace& trace,
+                 std::vector<float>* observations = nullptr);
+
+// Box2D 2.4.1 initialises its contact registry lazily on the first contact ever made, without a
+// lock. Called from the environment constructors (main thread) so workers never race on it.
+void warm_up_box2d();
+
+// Descriptor kernels (values: see README). Return the cell or -1.
+std::int64_t walker_gait_cell(const Trace& trace, bool corrected_contact_bins, double* values);
+std::int64_t kicker_ball_cell(const Trace& trace, double* values);
+
+// int(clip((v - lo) / (hi - lo) * n, 0, n - 1)), the reference binning rule (spec 1.7).
+int bin_index(double v, double lo, double hi, int n) noexcept;
+
+constexpr ParamSpec kWalkerParams[] = {
+    param_bool("mix_scale", "false", "multiply observation entries 14..25 (lidar, hull x, y) by 100 (spec 1.4)"),
+    param_int("max_steps", "500", 1, 1000000, "maximum policy steps per episode; trace keeps max_steps/20 rows"),
+};
+constexpr ParamSpec kKickerParams[] = {
+    param_bool("mix_scale", "false",
+               "S = 100 on observation entries 14..29 (lidar, hull pos, ball pos and velocity) (spec 1.6)"),
+    param_int("max_steps", "500", 1, 1000000, "maximum policy steps per episode; trace keeps max_steps/20 rows"),
+};
+constexpr ParamSpec kWalkerGaitParams[] = {
+    param_string("contact_bins", "\"reference\"", "reference|corrected",
+                 "reference: contact fractions binned into 10 bins with stride 5 (the paper's bug, cells collide); "
+                 "corrected: 5 bins"),
+};
+
+class BipedalEnvironment : public Environment {
+ public:
+  BipedalEnvironment(Task task, const Config& cfg);
+  EnvironmentInfo info() const override;
+  void rollout(const RolloutBatch& batch, Trace* traces) const override;
+  bool draw_svg(const Trace& trace, std::ostream& out) const override;
+  const EpisodeOptions& options() const noexcept { return options_; }
+
+ private:
+  EpisodeOptions options_;
+};
+
+class WalkerEnvironment final : public BipedalEnvironment {
+ public:
+  WalkerEnvironment(const Config& cfg, const BuildContext&) : BipedalEnvironment(Task::kWalker, cfg) {}
+};
+class KickerEnvironment final : public BipedalEnvironment {
+ public:
+  KickerEnvironment(const Config& cfg, const BuildContext&) : BipedalEnvironment(Task::kKicker, cfg) {}
+};
+
+class WalkerGaitDescriptor final : public Descriptor {
+ public:
+  WalkerGaitDescriptor(const Config& cfg, const BuildContext& ctx);
+  GridSpec grid() const override;
+  void describe(const Trace* traces, std::size_t n, std::int64_t* cells, double* values) const override;
+
+ private:
+  bool corrected_;
+};
+
+class KickerBallDescriptor final : public Descriptor {
+ public:
+  KickerBallDescriptor(const Config& cfg, const BuildContext& ctx);
+  GridSpec grid() const override;
+  void describe(const Trace* traces, std::size_t n, std::int64_t* cells, double* values) const override;
+};
+
+}  // namespace qd::bipedal

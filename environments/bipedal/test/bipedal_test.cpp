@@ -1,0 +1,440 @@
+// Known-answer tests for the walker and kicker environments and their descriptors.
+#include <gtest/gtest.h>
+
+#include <qd/rng.hpp>
+
+#include "bipedal.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <set>
+#include <sstream>
+#include <thread>
+#include <vector>
+
+namespace {
+
+using qd::bipedal::EpisodeOptions;
+using qd::bipedal::Task;
+using qd::bipedal::Termination;
+
+qd::PolicyShape shape_for(Task task) {
+  return qd::PolicyShape(qd::bipedal::observation_size(task), {32, 32}, qd::bipedal::kActionSize);
+}
+
+std::vector<double> random_params(Task task, std::uint64_t key) {
+  const qd::PolicyShape shape = shape_for(task);
+  std::vector<double> theta(shape.param_count());
+  qd::Rng rng(7, qd::Stream::kPlugin, key);
+  rng.fill_uniform(theta.data(), theta.size(), -1.0, 1.0);
+  return theta;
+}
+
+struct Episode {
+  qd::Trace trace;
+  std::vector<float> observations;
+};
+
+Episode run(Task task, const std::vector<double>& theta, bool mix_scale = false, int max_steps = 500) {
+  qd::bipedal::warm_up_box2d();
+  EpisodeOptions options;
+  options.task = task;
+  options.mix_scale = mix_scale;
+  options.max_steps = max_steps;
+  qd::Policy policy(shape_for(task));
+  policy.load(theta.data());
+  Episode e;
+  qd::bipedal::run_episode(options, policy, e.trace, &e.observations);
+  return e;
+}
+
+Termination why(const qd::Trace& t) {
+  return static_cast<Termination>(t.events.at(0));
+}
+
+// ---- Policy shape ------------------------------------------------------------------------------
+
+TEST(BipedalPolicy, ParamCounts) {
+  EXPECT_EQ(qd::PolicyShape(26, {32, 32}, 4).param_count(), 2052u);
+  EXPECT_EQ(qd::PolicyShape(30, {32, 32}, 4).param_count(), 2180u);
+}
+
+// ---- Terrain (Appendix A, structural facts) ------------------------------------------------------
+
+TEST(BipedalTerrain, StructuralFacts) {
+  const auto& h = qd::bipedal::walker_terrain_heights();
+  ASSERT_EQ(h.size(), 200u);
+  for (int i = 0; i <= 20; ++i) EXPECT_NEAR(h[i], 3.333333, 1e-6) << i;
+  EXPECT_DOUBLE_EQ(*std::min_element(h.begin(), h.end()), 2.963666);
+  EXPECT_DOUBLE_EQ(*std::max_element(h.begin(), h.end()), 3.595202);
+  EXPECT_DOUBLE_EQ(h[100], 3.423785);
+  // A point right after a counter reset repeats the previous height; no other point does.
+  const int resets[] = {19,  26,  32,  37,  44,  51,  60,  68,  76,  82,  89,  95,  104,
+                        113, 118, 124, 130, 137, 145, 152, 160, 167, 175, 183, 189, 196};
+  std::set<int> repeats;
+  for (int r : resets) repeats.insert(r + 1);
+  for (int i = 21; i < 200; ++i) EXPECT_EQ(h[i] == h[i - 1], repeats.count(i) == 1) << "i = " << i;
+}
+
+// ---- First observation -------------------------------------------------------------------------
+
+TEST(BipedalWalker, FirstObservationAfterResetStep) {
+  const Episode e = run(Task::kWalker, std::vector<double>(2052, 0.0));
+  ASSERT_GE(e.observations.size(), 26u);
+  const float* obs = e.observations.data();
+  // obs[24..25] is the hull position after the reset step, the same state as the first row.
+  EXPECT_EQ(obs[24], static_cast<float>(e.trace.main.at(0, 0)));
+  EXPECT_EQ(obs[25], static_cast<float>(e.trace.main.at(0, 1)));
+  EXPECT_NEAR(obs[24], 46.6667, 0.01);
+  EXPECT_NEAR(obs[25], 5.6, 0.1);
+  // One step of free fall of the hull: vy = -g dt = -0.2, obs[3] = 0.08 vy.
+  EXPECT_NEAR(obs[3], -0.016, 1e-3);
+  for (int i = 14; i < 24; ++i) {
+    EXPECT_GT(obs[i], 0.0f);
+    EXPECT_LE(obs[i], 1.0f);
+  }
+  // The vertical ray (i = 0) hits the terrain below the hull: (y - terrain(x)) / LIDAR_RANGE.
+  const auto& h = qd::bipedal::walker_terrain_heights();
+  const double s = obs[24] / qd::bipedal::kTerrainStep - 99.0;  // between points 99 and 100
+  const double ground = h[99] + s * (h[100] - h[99]);
+  EXPECT_NEAR(obs[14], (obs[25] - ground) / (160.0 / 30.0), 1e-4);
+  EXPECT_TRUE(obs[8] == 0.0f || obs[8] == 1.0f);
+  EXPECT_TRUE(obs[13] == 0.0f || obs[13] == 1.0f);
+}
+
+TEST(BipedalKicker, FirstObservationAfterResetStep) {
+  const Episode e = run(Task::kKicker, std::vector<double>(2180, 0.0));
+  ASSERT_GE(e.observations.size(), 30u);
+  const float* obs = e.observations.data();
+  // The ball starts at (46.6667, 4.0) and falls for one step with linear damping 1:
+  // vy = -g dt / (1 + dt), y = 4 + vy dt.
+  const double vy = -10.0 * 0.02 / (1.0 + 0.02);
+  EXPECT_NEAR(obs[26], 140.0 / 3.0, 1e-5);
+  EXPECT_NEAR(obs[27], 4.0 + vy * 0.02, 1e-5);
+  EXPECT_NEAR(obs[28], 0.0, 1e-6);
+  EXPECT_NEAR(obs[29], vy, 1e-5);
+  EXPECT_NEAR(obs[24], 44.3333, 0.01);
+  for (int i = 14; i < 24; ++i) {
+    EXPECT_GT(obs[i], 0.0f);
+    EXPECT_LE(obs[i], 1.0f);
+  }
+  EXPECT_NEAR(obs[14], (obs[25] - 10.0 / 3.0) / (160.0 / 30.0), 1e-5);  // flat ground, ball invisible
+  EXPECT_TRUE(obs[8] == 0.0f || obs[8] == 1.0f);
+  EXPECT_TRUE(obs[13] == 0.0f || obs[13] == 1.0f);
+  // The trace's first row is the ball at reset (after the reset step), not after step 0.
+  EXPECT_EQ(static_cast<float>(e.trace.main.at(0, 0)), obs[26]);
+  EXPECT_EQ(static_cast<float>(e.trace.main.at(0, 1)), obs[27]);
+}
+
+// ---- Kicker episodes ----------------------------------------------------------------------------
+
+TEST(BipedalKicker, ZeroPolicyEndsInCellZero) {
+  const Episode e = run(Task::kKicker, std::vector<double>(2180, 0.0));
+  EXPECT_EQ(e.trace.status, qd::EvalStatus::kOk);
+  EXPECT_LT(e.trace.steps, 500);
+  EXPECT_NE(why(e.trace), Termination::kMaxSteps);
+  EXPECT_EQ(why(e.trace), Termination::kAllStill);  // limp robot resting on its legs, ball not moved
+  double values[2];
+  EXPECT_EQ(qd::bipedal::kicker_ball_cell(e.trace, values), 0);
+  EXPECT_LT(values[0], 4.0);
+  EXPECT_LE(values[1], 46.667);
+}
+
+TEST(BipedalKicker, ActionIsCutOffAfter101Calls) {
+  // A policy (found by search, fixed seed) whose episode lasts past step 120.
+  const Episode e = run(Task::kKicker, random_params(Task::kKicker, 4));
+  ASSERT_EQ(e.trace.status, qd::EvalStatus::kOk);
+  ASSERT_GT(e.trace.steps, 120);
+  // Rows: reset, steps 0, 20, ..., 100 (row 6), 120 (row 7). Columns 8..11 are the applied action.
+  const auto applied = [&](std::size_t row) {
+    double s = 0.0;
+    for (int c = 8; c < 12; ++c) s += std::fabs(e.trace.aux.at(row, c));
+    return s;
+  };
+  EXPECT_EQ(applied(0), 0.0);
+  EXPECT_GT(applied(6), 0.0);  // step 100 = the 101st call: still controlled
+  EXPECT_EQ(applied(7), 0.0);  // step 120: limp
+}
+
+TEST(BipedalKicker, NonFiniteActionIsInvalid) {
+  std::vector<double> theta(2180, 0.0);
+  const qd::PolicyShape shape = shape_for(Task::kKicker);
+  theta[shape.layer_offset(2) + 32 * 4 + 1] = std::nan("");  // output bias of action 1
+  const Episode e = run(Task::kKicker, theta);
+  EXPECT_EQ(e.trace.status, qd::EvalStatus::kInvalidAction);
+  EXPECT_EQ(e.trace.steps, 0);
+}
+
+// ---- Walker termination and truncation ------------------------------------------------------------
+
+TEST(BipedalWalker, LimpRobotFallsOnItsHull) {
+  // Zero parameters: zero torque, the robot folds and the hull touches the ground.
+  const Episode e = run(Task::kWalker, std::vector<double>(2052, 0.0));
+  EXPECT_EQ(e.trace.status, qd::EvalStatus::kOk);
+  EXPECT_EQ(why(e.trace), Termination::kHullContact);
+  EXPECT_LT(e.trace.steps, 500);
+  EXPECT_LE(e.trace.main.rows(), 25u);
+  // Rows: reset, every 20th step, and the done step.
+  const std::size_t expected =
+      1 + static_cast<std::size_t>((e.trace.steps - 1) / 20 + 1) + ((e.trace.steps - 1) % 20 == 0 ? 0 : 1);
+  EXPECT_EQ(e.trace.main.rows(), expected);
+  EXPECT_EQ(e.trace.aux.rows(), expected);
+  EXPECT_LT(e.trace.main.last()[1], 5.0);  // the hull came down
+}
+
+TEST(BipedalWalker, RowsAreTruncatedToMaxStepsOver20) {
+  // Same limp robot, cut at 100 steps (it falls later): rows reset, 0, 20, 40, 60, 80 -> first 5 kept.
+  const Episode full = run(Task::kWalker, std::vector<double>(2052, 0.0));
+  ASSERT_GT(full.trace.steps, 100);
+  const Episode e = run(Task::kWalker, std::vector<double>(2052, 0.0), false, 100);
+  EXPECT_EQ(e.trace.steps, 100);
+  EXPECT_EQ(why(e.trace), Termination::kMaxSteps);
+  ASSERT_EQ(e.trace.main.rows(), 5u);
+  for (std::size_t i = 0; i < e.trace.main.data.size(); ++i) EXPECT_EQ(e.trace.main.data[i], full.trace.main.data[i]);
+}
+
+TEST(BipedalWalker, StillHullEndsTheEpisode) {
+  // A fixed random policy (found by search) whose robot stands still until Box2D puts it to sleep.
+  const Episode e = run(Task::kWalker, random_params(Task::kWalker, 5));
+  ASSERT_EQ(why(e.trace), Termination::kHullStill);
+  ASSERT_LT(e.trace.steps, 460);  // the done row is kept
+  const double* last = e.trace.aux.last();
+  EXPECT_LE(std::hypot(last[3], last[4]), 0.0005);
+  EXPECT_EQ(e.trace.main.rows(), e.trace.aux.rows());
+}
+
+TEST(BipedalWalker, EpisodesStayWithinLimits) {
+  for (std::uint64_t key = 1; key <= 6; ++key) {
+    const Episode e = run(Task::kWalker, random_params(Task::kWalker, key));
+    EXPECT_EQ(e.trace.status, qd::EvalStatus::kOk);
+    EXPECT_LE(e.trace.steps, 500);
+    EXPECT_GE(e.trace.main.rows(), 1u);
+    EXPECT_LE(e.trace.main.rows(), 25u);
+    EXPECT_EQ(e.trace.main.cols, 3);
+    EXPECT_EQ(e.trace.aux.cols, 5);
+    EXPECT_EQ(e.observations.size(), static_cast<std::size_t>(e.trace.steps) * 26u);
+  }
+}
+
+// ---- mix_scale -----------------------------------------------------------------------------------
+
+// A random policy that ignores the scaled inputs, so that both variants follow the same trajectory.
+void check_mix_scale(Task task, int first, int last) {
+  std::vector<double> theta = random_params(task, 11);
+  for (int r = first; r <= last; ++r)
+    for (int c = 0; c < 32; ++c) theta[static_cast<std::size_t>(r) * 32 + static_cast<std::size_t>(c)] = 0.0;
+  const Episode plain = run(task, theta, false);
+  const Episode mixed = run(task, theta, true);
+  ASSERT_GT(plain.trace.steps, 5);
+  ASSERT_EQ(plain.observations.size(), mixed.observations.size());
+  const int n = qd::bipedal::observation_size(task);
+  for (std::size_t k = 0; k < plain.observations.size(); ++k) {
+    const int i = static_cast<int>(k % static_cast<std::size_t>(n));
+    const float expected = (i >= first && i <= last)
+                               ? static_cast<float>(100.0 * static_cast<double>(plain.observations[k]))
+                               : plain.observations[k];
+    ASSERT_EQ(mixed.observations[k], expected) << "step " << k / n << " entry " << i;
+  }
+  EXPECT_EQ(plain.trace.main.data, mixed.trace.main.data);
+}
+
+TEST(BipedalWalker, MixScaleMultipliesLidarAndPosition) {
+  check_mix_scale(Task::kWalker, 14, 25);
+}
+TEST(BipedalKicker, MixScaleMultipliesLidarPositionsAndBall) {
+  check_mix_scale(Task::kKicker, 14, 29);
+}
+
+// ---- Descriptors on synthetic traces -------------------------------------------------------------
+
+qd::Trace walker_trace(double mean_y, double final_x, int rows, int left_contacts, int right_contacts) {
+  qd::Trace t;
+  t.main.reset(3);
+  t.aux.reset(5);
+  for (int r = 0; r < rows; ++r) {
+    t.main.push(r + 1 == rows ? final_x : 46.0, mean_y, 0.0);
+    t.aux.push(r < left_contacts ? 1.0 : 0.0, r < right_contacts ? 1.0 : 0.0, 0.0, 0.0, 0.0);
+  }
+  return t;
+}
+
+std::int64_t walker_cell(const qd::Trace& t, bool corrected) {
+  double v[4];
+  return qd::bipedal::walker_gait_cell(t, corrected, v);
+}
+
+TEST(BipedalWalkerGait, ReferenceVersusCorrectedContactBins) {
+  // mean y 5.0 -> d0 = int(0.5 / 1.7 * 5) = 1; x = 50 -> d1 = int(53.57) = 53; left 11/20 = 0.55.
+  const qd::Trace t = walker_trace(5.0, 50.0, 20, 11, 0);
+  EXPECT_EQ(walker_cell(t, false), 1 * 2500 + 53 * 25 + 5 * 5 + 0);  // d2 = int(5.5) = 5
+  EXPECT_EQ(walker_cell(t, true), 1 * 2500 + 53 * 25 + 2 * 5 + 0);   // d2 = int(2.75) = 2
+  double v[4];
+  qd::bipedal::walker_gait_cell(t, false, v);
+  EXPECT_DOUBLE_EQ(v[0], 5.0);
+  EXPECT_DOUBLE_EQ(v[1], 50.0 / (14.0 / 30.0 * 200.0));
+  EXPECT_DOUBLE_EQ(v[2], 0.55);
+  EXPECT_DOUBLE_EQ(v[3], 0.0);
+}
+
+TEST(BipedalWalkerGait, ReferenceCellsCollide) {
+  // (d1, d2, d3) = (53, 5, 0) and (54, 0, 0) share a cell in reference mode only.
+  const qd::Trace a = walker_trace(5.0, 50.0, 20, 11, 0);
+  const qd::Trace b = walker_trace(5.0, 54.5 / 100.0 * 93.3333333, 20, 0, 0);
+  EXPECT_EQ(walker_cell(a, false), walker_cell(b, false));
+  EXPECT_NE(walker_cell(a, true), walker_cell(b, true));
+}
+
+TEST(BipedalWalkerGait, BinEdges) {
+  // d0: y clipped to [4.5, 6.2].
+  EXPECT_EQ(walker_cell(walker_trace(4.0, 0.0, 5, 0, 0), true), 0);
+  EXPECT_EQ(walker_cell(walker_trace(4.5, 0.0, 5, 0, 0), true), 0);
+  EXPECT_EQ(walker_cell(walker_trace(6.2, 0.0, 5, 0, 0), true), 4 * 2500);
+  EXPECT_EQ(walker_cell(walker_trace(9.0, 0.0, 5, 0, 0), true), 4 * 2500);
+  // d1: x / 93.333, 100 bins, clipped.
+  EXPECT_EQ(walker_cell(walker_trace(4.5, -3.0, 5, 0, 0), true), 0);
+  EXPECT_EQ(walker_cell(walker_trace(4.5, 46.6667, 5, 0, 0), true), 50 * 25);  // start x in bin 50
+  EXPECT_EQ(walker_cell(walker_trace(4.5, 93.0, 5, 0, 0), true), 99 * 25);
+  EXPECT_EQ(walker_cell(walker_trace(4.5, 200.0, 5, 0, 0), true), 99 * 25);
+  // Contacts over 5 rows: 1/5 = 0.2 -> reference int(2.0) = 2, corrected int(1.0) = 1.
+  EXPECT_EQ(walker_cell(walker_trace(4.5, 0.0, 5, 1, 0), false), 2 * 5);
+  EXPECT_EQ(walker_cell(walker_trace(4.5, 0.0, 5, 1, 0), true), 1 * 5);
+  EXPECT_EQ(walker_cell(walker_trace(4.5, 0.0, 5, 0, 5), false), 9);  // mean 1 -> clip to 9
+  EXPECT_EQ(walker_cell(walker_trace(4.5, 0.0, 5, 0, 5), true), 4);
+}
+
+TEST(BipedalWalkerGait, OutOfRangeIndexIsMinusOne) {
+  // d0 = 4, d1 = 99, d2 = d3 = 9: 10000 + 2475 + 45 + 9 = 12529 >= 12500.
+  const qd::Trace t = walker_trace(6.2, 93.0, 5, 5, 5);
+  EXPECT_EQ(walker_cell(t, false), -1);
+  EXPECT_EQ(walker_cell(t, true), 12499);
+  EXPECT_EQ(walker_cell(qd::Trace{}, false), -1);
+
+  qd::Config cfg = qd::defaults_of(qd::bipedal::kWalkerGaitParams, "descriptor");
+  const qd::bipedal::WalkerGaitDescriptor reference(cfg, qd::BuildContext{});
+  EXPECT_EQ(reference.grid().cells, 12500);
+  const qd::Trace batch[2] = {t, walker_trace(5.0, 50.0, 20, 11, 0)};
+  std::int64_t cells[2];
+  double values[8];
+  reference.describe(batch, 2, cells, values);
+  EXPECT_EQ(cells[0], -1);
+  EXPECT_EQ(cells[1], 3850);
+  cfg.set_string("contact_bins", "corrected", "test");
+  const qd::bipedal::WalkerGaitDescriptor corrected(cfg, qd::BuildContext{});
+  corrected.describe(batch, 2, cells, values);
+  EXPECT_EQ(cells[0], 12499);
+  EXPECT_EQ(cells[1], 3835);
+}
+
+qd::Trace kicker_trace(double max_y, double final_x) {
+  qd::Trace t;
+  t.main.reset(2);
+  t.main.push(46.6667, 3.9);
+  t.main.push(46.0, max_y);
+  t.main.push(final_x, 3.667);
+  return t;
+}
+
+std::int64_t kicker_cell(const qd::Trace& t) {
+  double v[2];
+  return qd::bipedal::kicker_ball_cell(t, v);
+}
+
+TEST(BipedalKickerBall, BinEdges) {
+  const double x0 = 140.0 / 3.0;
+  EXPECT_EQ(kicker_cell(kicker_trace(3.0, 40.0)), 0);       // below both ranges
+  EXPECT_EQ(kicker_cell(kicker_trace(4.09, x0)), 1 * 200);  // 0.09 / 0.06 = 1.5
+  EXPECT_EQ(kicker_cell(kicker_trace(6.99, x0)), 49 * 200);
+  EXPECT_EQ(kicker_cell(kicker_trace(7.0, x0)), 49 * 200);  // top edge clipped into the last bin
+  EXPECT_EQ(kicker_cell(kicker_trace(10.0, x0)), 49 * 200);
+  EXPECT_EQ(kicker_cell(kicker_trace(3.0, x0 + 0.15)), 1);  // 0.1-unit bins
+  EXPECT_EQ(kicker_cell(kicker_trace(3.0, x0 + 10.05)), 100);
+  EXPECT_EQ(kicker_cell(kicker_trace(3.0, x0 + 19.95)), 199);
+  EXPECT_EQ(kicker_cell(kicker_trace(3.0, x0 + 20.0)), 199);
+  EXPECT_EQ(kicker_cell(kicker_trace(3.0, 90.0)), 199);
+  EXPECT_EQ(kicker_cell(kicker_trace(5.5, x0 + 5.05)), 25 * 200 + 50);
+  EXPECT_EQ(kicker_cell(qd::Trace{}), -1);
+  double v[2];
+  qd::bipedal::kicker_ball_cell(kicker_trace(5.5, 50.0), v);
+  EXPECT_DOUBLE_EQ(v[0], 5.5);
+  EXPECT_DOUBLE_EQ(v[1], 50.0);
+}
+
+// ---- Environment component: determinism and threads -----------------------------------------------
+
+void expect_same(const qd::Trace& a, const qd::Trace& b) {
+  EXPECT_EQ(a.status, b.status);
+  EXPECT_EQ(a.steps, b.steps);
+  EXPECT_EQ(a.events, b.events);
+  EXPECT_EQ(a.main.data, b.main.data);
+  EXPECT_EQ(a.aux.data, b.aux.data);
+  EXPECT_EQ(std::memcmp(&a.fitness, &b.fitness, sizeof(double)), 0);
+}
+
+void check_determinism(Task task) {
+  qd::Config cfg =
+      qd::defaults_of(task == Task::kWalker ? qd::bipedal::kWalkerParams : qd::bipedal::kKickerParams, "environment");
+  const qd::bipedal::BipedalEnvironment env(task, cfg);
+  const qd::PolicyShape shape = shape_for(task);
+  constexpr int kN = 4;
+  qd::Matrix params(kN, static_cast<Eigen::Index>(shape.param_count()));
+  for (int i = 0; i < kN; ++i) {
+    const std::vector<double> theta = random_params(task, 20 + static_cast<std::uint64_t>(i));
+    for (std::size_t p = 0; p < theta.size(); ++p) params(i, static_cast<Eigen::Index>(p)) = theta[p];
+  }
+  const std::uint64_t seeds[kN] = {1, 2, 3, 4};
+  auto batch = [&](std::size_t begin, std::size_t end) {
+    qd::RolloutBatch b;
+    b.shape = &shape;
+    b.params = &params;
+    b.episode_seeds = seeds;
+    b.begin = begin;
+    b.end = end;
+    return b;
+  };
+  std::vector<qd::Trace> first(kN), second(kN), forward(kN), backward(kN);
+  env.rollout(batch(0, kN), first.data());
+  env.rollout(batch(0, kN), second.data());
+  std::thread t1([&] {
+    for (std::size_t i = 0; i < kN; ++i) env.rollout(batch(i, i + 1), forward.data());
+  });
+  std::thread t2([&] {
+    for (std::size_t i = kN; i-- > 0;) env.rollout(batch(i, i + 1), backward.data());
+  });
+  t1.join();
+  t2.join();
+  for (int i = 0; i < kN; ++i) {
+    SCOPED_TRACE(i);
+    EXPECT_GT(first[i].steps, 0);
+    expect_same(first[i], second[i]);
+    expect_same(first[i], forward[i]);
+    expect_same(first[i], backward[i]);
+  }
+}
+
+TEST(BipedalWalker, DeterministicAcrossRunsAndThreads) {
+  check_determinism(Task::kWalker);
+}
+TEST(BipedalKicker, DeterministicAcrossRunsAndThreads) {
+  check_determinism(Task::kKicker);
+}
+
+TEST(BipedalEnvironment, InfoAndSvg) {
+  const qd::bipedal::BipedalEnvironment walker(Task::kWalker,
+                                               qd::defaults_of(qd::bipedal::kWalkerParams, "environment"));
+  EXPECT_EQ(walker.info().observation_size, 26);
+  EXPECT_EQ(walker.info().action_size, 4);
+  EXPECT_EQ(walker.info().max_steps, 500);
+  EXPECT_EQ(walker.info().default_descriptor, "walker-gait");
+  const qd::bipedal::BipedalEnvironment kicker(Task::kKicker,
+                                               qd::defaults_of(qd::bipedal::kKickerParams, "environment"));
+  EXPECT_EQ(kicker.info().observation_size, 30);
+  EXPECT_EQ(kicker.info().default_descriptor, "kicker-ball");
+  const Episode e = run(Task::kKicker, random_params(Task::kKicker, 4));
+  std::ostringstream svg;
+  EXPECT_TRUE(kicker.draw_svg(e.trace, svg));
+  EXPECT_NE(svg.str().find("<svg"), std::string::npos);
+  EXPECT_NE(svg.str().find("</svg>"), std::string::npos);
+}
+
+}  // namespace
