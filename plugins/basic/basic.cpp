@@ -17,11 +17,7 @@ IsoMutator::IsoMutator(const Config& cfg, const BuildContext&) : sigma_(cfg.get_
 void IsoMutator::mutate(const Parents& parents, std::size_t count, MutateContext& ctx, Offspring& out) {
   QD_CHECK(static_cast<std::size_t>(parents.theta.rows()) == count, "iso mutates one offspring per parent");
   out.theta = parents.theta;
-  const auto n = static_cast<std::size_t>(out.theta.size());
-  std::vector<double> noise(n);
-  ctx.rng->fill_normal(noise.data(), n, sigma_);
-  double* p = out.theta.data();
-  for (std::size_t k = 0; k < n; ++k) p[k] += noise[k];
+  ctx.rng->add_normal(out.theta.data(), static_cast<std::size_t>(out.theta.size()), sigma_);
   out.mixing_ratio = 1.0;
 }
 
