@@ -1,0 +1,36 @@
+// The "striker" environment component: air-hockey Striker of the PoMS paper (spec 1.1, 1.2).
+#pragma once
+
+#include "striker_sim.hpp"
+
+#include <qd/config.hpp>
+#include <qd/environment.hpp>
+
+namespace qd::striker {
+
+inline constexpr ParamSpec kEnvironmentParams[] = {
+    param_bool("mix_scale", "false",
+               "multiply the puck position (obs[3], obs[4]) and the wall distances (obs[10..13]) by 100 "
+               "(StrikerAugmentedMixScale)"),
+    param_bool("puck_hits_target", "false",
+               "false = reference quirk: the target circle blocks only the striker; true: the puck collides "
+               "with it too"),
+    param_int("max_steps", "1000", kRowEvery, 1e9, "episode length limit; max_steps / 20 trajectory rows are kept"),
+};
+
+class StrikerEnvironment final : public Environment {
+ public:
+  StrikerEnvironment(const Config& config, const BuildContext& context);
+  explicit StrikerEnvironment(const Options& options);
+
+  EnvironmentInfo info() const override;
+  void rollout(const RolloutBatch& batch, Trace* traces) const override;
+  bool draw_svg(const Trace& trace, std::ostream& out) const override;
+
+  const Options& options() const noexcept { return options_; }
+
+ private:
+  Options options_;
+};
+
+}  // namespace qd::striker
