@@ -31,7 +31,8 @@ struct Cli {
   std::vector<std::string> experiments;
   std::vector<std::string> sets;
   std::vector<std::string> plugin_paths;
-  std::string output, resume, describe;
+  std::string output, resume, describe, replay, svg;
+  long long cell = -1;
   long long seed = -1;
   int workers = 0;
   int stop_after_loop = -1;
@@ -166,6 +167,27 @@ int run_one(const Cli& cli, const std::string& command_line) {
   return kExitOk;
 }
 
+int replay(const Cli& cli) {
+  if (cli.cell < 0) throw InputError("--replay needs --cell N (an index from archive.csv)");
+  const fs::path dir = cli.replay;
+  if (!fs::exists(dir / "config.toml")) throw InputError(cli.replay + ": not a run directory (no config.toml)");
+  Document doc = Document::read(dir / "config.toml");
+  Registry reg;
+  setup_registry(reg, cli, doc.plugin_paths());
+  RunOptions opt;
+  opt.directory = cli.replay;
+  opt.workers = 1;
+  Run run(resolve(doc, reg), reg, std::move(opt));
+  const fs::path svg = cli.svg.empty() ? dir / ("replay-cell-" + std::to_string(cli.cell) + ".svg") : fs::path(cli.svg);
+  const Trace t = run.replay(cli.cell, svg);
+  std::int64_t cell = -1;
+  std::vector<double> values(run.descriptor().grid().shape.size());
+  if (t.status == EvalStatus::kOk) run.descriptor().describe(&t, 1, &cell, values.data());
+  std::printf("replayed cell %lld: %s, %d steps, lands in cell %lld%s\nwrote %s\n", cli.cell, to_string(t.status), t.steps,
+              static_cast<long long>(cell), cell == cli.cell ? " (as stored)" : " (differs from the stored cell)", svg.c_str());
+  return kExitOk;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -184,7 +206,10 @@ int main(int argc, char** argv) {
     ("list", po::bool_switch(&cli.list), "list every available component with its plugin library and version")
     ("describe", po::value(&cli.describe), "print the parameters of a component or core table (experiment, policy, output, evaluation)")
     ("plugin-path", po::value(&cli.plugin_paths)->composing(), "extra plugin directory, searched first (repeatable)")
-    ("stop-after-loop", po::value(&cli.stop_after_loop), "stop cleanly after this loop's checkpoint (for time-sliced jobs)");
+    ("stop-after-loop", po::value(&cli.stop_after_loop), "stop cleanly after this loop's checkpoint (for time-sliced jobs)")
+    ("replay", po::value(&cli.replay), "re-run one elite of a finished run and draw it: --replay RUN_DIR --cell N [--svg FILE]")
+    ("cell", po::value(&cli.cell), "with --replay: the cell index (column 'index' of archive.csv)")
+    ("svg", po::value(&cli.svg), "with --replay: output file (default RUN_DIR/replay-cell-N.svg)");
   // clang-format on
   po::options_description hidden;
   hidden.add_options()("experiment", po::value(&cli.experiments)->composing(), "experiment file");
@@ -216,6 +241,7 @@ int main(int argc, char** argv) {
       setup_registry(reg, cli, from_file);
       return cli.list ? list_components(reg) : describe(reg, cli.describe);
     }
+    if (!cli.replay.empty()) return replay(cli);
     if (cli.workers < 0) throw InputError("--workers must be >= 0");
     if (cli.resume.empty() && cli.experiments.size() != 1)
       throw InputError(cli.experiments.empty() ? "no experiment file given (qdrun EXPERIMENT.toml; see --help)"

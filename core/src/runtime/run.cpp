@@ -493,6 +493,46 @@ void Run::write_snapshot(const fs::path& path) const {
   commit_file(tmp, path);
 }
 
+Trace Run::replay(std::int64_t cell, const fs::path& svg) const {
+  const fs::path csv = dir_ / "archive.csv";
+  std::ifstream in(csv);
+  if (!in) throw InputError(csv.string() + ": no final archive (is the run complete?)");
+  std::string header, line;
+  std::getline(in, header);
+  std::vector<std::string> columns;
+  for (std::size_t pos = 0;;) {
+    const std::size_t c = header.find(',', pos);
+    columns.push_back(header.substr(pos, c == std::string::npos ? std::string::npos : c - pos));
+    if (c == std::string::npos) break;
+    pos = c + 1;
+  }
+  const auto first = std::find(columns.begin(), columns.end(), "solution_0");
+  if (first == columns.end())
+    throw InputError(csv.string() + ": has no solution_* columns (output.snapshot_parameters was false)");
+  const auto offset = static_cast<std::size_t>(first - columns.begin());
+  const std::size_t P = shape_.param_count();
+  while (std::getline(in, line)) {
+    if (std::stoll(line.substr(0, line.find(','))) != cell) continue;
+    Matrix theta(1, static_cast<Eigen::Index>(P));
+    std::size_t pos = 0;
+    for (std::size_t k = 0; k < offset; ++k) pos = line.find(',', pos) + 1;
+    for (std::size_t k = 0; k < P; ++k) {
+      const std::size_t c = line.find(',', pos);
+      theta(0, static_cast<Eigen::Index>(k)) = std::stod(line.substr(pos, c - pos));
+      pos = c + 1;
+    }
+    std::vector<Trace> traces(1);
+    const std::uint64_t seed = 0;
+    RolloutBatch b{&shape_, &theta, &seed, 0, 1};
+    env_->rollout(b, traces.data());
+    std::ofstream out(svg);
+    if (!out || !env_->draw_svg(traces[0], out))
+      throw InputError("cannot draw to " + svg.string() + " (environment '" + ex_.environment.type + "')");
+    return traces[0];
+  }
+  throw InputError(csv.string() + ": no elite in cell " + std::to_string(cell));
+}
+
 void Run::write_checkpoint(int loop) {
   // Streamed straight to a temporary file (the state can be hundreds of MB), then committed.
   const fs::path tmp = dir_ / (std::string(kCheckpointFile) + ".tmp");

@@ -60,6 +60,10 @@ class Run {
   // Runs until the configured number of loops (or stop_after_loop). Returns true when finished.
   bool run();
 
+  // Re-runs the elite of `cell` from the run directory's archive.csv and draws it to `svg`.
+  // Returns the replayed trace (its status tells whether it still evaluates as stored).
+  Trace replay(std::int64_t cell, const std::filesystem::path& svg) const;
+
   // Accessors for tests and tools.
   const Archive& archive() const { return *archive_; }
   const Dataset& dataset() const { return *dataset_; }

@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# An experiment file of the paper loads, validates and runs end to end with a tiny budget.
+source "$(dirname "$0")/lib.sh"
+qdrun=$1 exp=$2 out=$3
+rm -rf "$out"
+"$qdrun" "$exp" -o "$out" -q --workers 2 --set experiment.loops=2 --set experiment.iterations=1 \
+  --set experiment.batch=6 --set experiment.initial_samples=8 $(grep -q autoencoder "$exp" && echo --set representation.max_epochs=3)
+dir=$(run_dir "$out")
+grep -qx complete "$dir/status"
+[ "$(($(wc -l < "$dir/metrics.csv") - 1))" -eq 2 ]
+echo "ok: $exp"
