@@ -11,7 +11,9 @@ cmake --build "$work/example-build" > "$work.build.log" 2>&1 || { cat "$work.bui
 test -f "$work/example-build/qd_half_step.so"
 # The installed qdrun finds the installed plugins next to itself and the new one on QD_PLUGIN_PATH.
 sed 's/^type = "iso"/type = "half-step"/; /^sigma/d' "$src/../../experiments/smoke/iso.toml" > "$work/exp.toml"
-QD_PLUGIN_PATH="$work/example-build" "$work/prefix/bin/qdrun" --list | grep -q "half-step"
+listing=$(QD_PLUGIN_PATH="$work/example-build" "$work/prefix/bin/qdrun" --list)
+grep -q "half-step" <<< "$listing"
+grep -q "poms" <<< "$listing"  # the installed plugins are found next to the installed qdrun
 QD_PLUGIN_PATH="$work/example-build" "$work/prefix/bin/qdrun" "$work/exp.toml" -o "$work/runs" -q
 grep -qx complete "$work/runs/smoke-iso/seed-7/status"
 grep -q "plugin = \"half_step\"" "$work/runs/smoke-iso/seed-7/provenance.toml"

@@ -70,19 +70,19 @@ TEST(Config, ValidFileResolvesWithDefaults) {
   EXPECT_EQ(ex.representation.type, "none");
   EXPECT_EQ(ex.environment.config.get_int("steps"), 50);  // a default filled in
   EXPECT_NE(ex.resolved_toml.find("steps = 50"), std::string::npos);
-  EXPECT_EQ(ex.mutator.config.where("sigma"), "exp.toml:15:9");
+  EXPECT_EQ(ex.mutator.config.where("sigma"), "exp.toml:14:9");
 }
 
 TEST(Config, UnknownKeyNamesLocationAndSuggests) {
   const std::string msg = error_of(replace(kValid, "sigma = 0.2", "sgima = 0.2"));
-  EXPECT_NE(msg.find("exp.toml:15:9"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("exp.toml:14:9"), std::string::npos) << msg;
   EXPECT_NE(msg.find("unknown key 'sgima' in [mutator]"), std::string::npos) << msg;
   EXPECT_NE(msg.find("did you mean 'sigma'"), std::string::npos) << msg;
 }
 
 TEST(Config, WrongTypeIsReported) {
   const std::string msg = error_of(replace(kValid, "sigma = 0.2", "sigma = \"big\""));
-  EXPECT_NE(msg.find("exp.toml:15:9: mutator.sigma must be a float"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("exp.toml:14:9: mutator.sigma must be a float"), std::string::npos) << msg;
 }
 
 TEST(Config, ZeroAndNegativeBudgetsAreOutOfRange) {
@@ -93,7 +93,7 @@ TEST(Config, ZeroAndNegativeBudgetsAreOutOfRange) {
 
 TEST(Config, UnknownComponentListsTheKnownOnes) {
   const std::string msg = error_of(replace(kValid, "type = \"iso\"", "type = \"isox\""));
-  EXPECT_NE(msg.find("exp.toml:14:8"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("exp.toml:13:8"), std::string::npos) << msg;
   EXPECT_NE(msg.find("unknown mutator 'isox'"), std::string::npos) << msg;
   EXPECT_NE(msg.find("iso, uniform"), std::string::npos) << msg;
 }

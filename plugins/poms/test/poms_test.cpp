@@ -176,7 +176,7 @@ TEST(PomsTest, LatentCovarianceIsSigmaJtJForNonLinearDecoder) {
   // far from a multiple of the identity.
   std::vector<Matrix> jac_far;
   model.decoder_jacobians(Matrix(z0.array() - 1.0), jac_far);
-  EXPECT_GT((jac_far[0] - jac[0]).cwiseAbs().maxCoeff(), 0.1);
+  EXPECT_GT((jac_far[0] - jac[0]).cwiseAbs().maxCoeff(), 0.01);  // J depends on z (0 for a linear decoder)
   EXPECT_GT(std::abs(jtj(0, 1)), 0.05 * std::sqrt(jtj(0, 0) * jtj(1, 1)));
   qd::Archive archive = archive_with_mean(p, 1.0, 1.0);  // threshold 1 > every parent's error 0
 
