@@ -2,8 +2,9 @@
 // description, insertion, metrics, checkpoints) divided by evaluations/s of a bare loop that calls
 // the same environment and policy directly. Same binary, same process, one worker.
 //
-//   qd_framework_overhead EXPERIMENT.toml [--set k=v]...
-// The experiment's workers are forced to 1. Prints both rates and their ratio.
+//   qd_framework_overhead EXPERIMENT.toml [--workers N] [--set k=v]...
+// The bare loop is single-threaded; the qdrun run uses N workers (default 1). Prints both rates and
+// their ratio (with N > 1 the ratio is the parallel speed-up over the bare loop).
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
 #include "runtime/run.hpp"
@@ -35,10 +36,13 @@ int main(int argc, char** argv) {
     const fs::path out = fs::temp_directory_path() / "qd_framework_overhead";
     fs::remove_all(out);
     Document doc = Document::read(argv[1]);
-    for (int i = 2; i + 1 < argc; i += 2)
+    int workers = 1;
+    for (int i = 2; i + 1 < argc; i += 2) {
       if (std::string(argv[i]) == "--set") doc.apply_override(argv[i + 1]);
+      if (std::string(argv[i]) == "--workers") workers = std::stoi(argv[i + 1]);
+    }
     doc.apply_override("output.dir=\"" + out.string() + "\"");
-    doc.apply_override("evaluation.workers=1");
+    doc.apply_override("evaluation.workers=" + std::to_string(workers));
     Registry reg;
     reg.add_search_dir(installed_plugin_dir());
     reg.add_search_dir(build_tree_plugin_dir());
@@ -74,9 +78,10 @@ int main(int argc, char** argv) {
 
     const double bare_rate = static_cast<double>(bare_evals) / bare_s;
     const double run_rate = static_cast<double>(total) / run_s;
-    std::printf("experiment=%s params=%zu evaluations=%llu\n", argv[1], shape.param_count(),
-                static_cast<unsigned long long>(total));
-    std::printf("bare_loop_evals_per_s=%.1f qdrun_evals_per_s=%.1f ratio=%.4f\n", bare_rate, run_rate, run_rate / bare_rate);
+    std::printf("experiment=%s params=%zu evaluations=%llu workers=%d\n", argv[1], shape.param_count(),
+                static_cast<unsigned long long>(total), workers);
+    std::printf("bare_loop_evals_per_s=%.1f qdrun_evals_per_s=%.1f ratio=%.4f bare_us_per_eval=%.2f qdrun_us_per_eval=%.2f\n",
+                bare_rate, run_rate, run_rate / bare_rate, 1e6 / bare_rate, 1e6 / run_rate);
     fs::remove_all(out);
     return 0;
   } catch (const std::exception& e) {

@@ -191,6 +191,9 @@ int replay(const Cli& cli) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Representations train with OpenMP between evaluation phases; spinning idle OpenMP threads would
+  // steal the cores from the evaluation workers. A user's own setting wins.
+  ::setenv("OMP_WAIT_POLICY", "passive", 0);
   Cli cli;
   po::options_description visible("qdrun EXPERIMENT.toml [options]\n\nOptions");
   // clang-format off
