@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DQD_BUILD_BENCHMARKS=ON > /dev/null
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DQD_BUILD_BENCHMARKS=ON -DQD_ONLY_DIRS= -DQD_EXCLUDE_DIRS= > /dev/null
 cmake --build build --parallel > /dev/null
 fo=build/bin/qd_framework_overhead
 echo "# machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores"

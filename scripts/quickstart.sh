@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DQD_BUILD_TESTS=OFF > /dev/null
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DQD_BUILD_TESTS=OFF -DQD_ONLY_DIRS= -DQD_EXCLUDE_DIRS= > /dev/null
 cmake --build build --parallel
 out=runs
 rm -rf "$out/quickstart"

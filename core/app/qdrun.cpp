@@ -194,6 +194,7 @@ int main(int argc, char** argv) {
   // Representations train with OpenMP between evaluation phases; spinning idle OpenMP threads would
   // steal the cores from the evaluation workers. A user's own setting wins.
   ::setenv("OMP_WAIT_POLICY", "passive", 0);
+  tune_allocator();
   Cli cli;
   po::options_description visible("qdrun EXPERIMENT.toml [options]\n\nOptions");
   // clang-format off

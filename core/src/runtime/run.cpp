@@ -11,6 +11,7 @@
 #include <cmath>
 #include <ctime>
 #include <fstream>
+#include <malloc.h>
 #include <numeric>
 #include <sstream>
 #include <unistd.h>
@@ -63,6 +64,11 @@ bool is_appended_log(const fs::path& p) {
 }
 
 }  // namespace
+
+void tune_allocator() {
+  mallopt(M_MMAP_THRESHOLD, 256 << 20);
+  mallopt(M_TRIM_THRESHOLD, 1024 << 20);
+}
 
 Run::Run(Experiment experiment, const Registry& registry, RunOptions options)
     : ex_(std::move(experiment)), opt_(std::move(options)) {
@@ -245,9 +251,9 @@ void Run::loop_zero() {
   const auto& s = ex_.settings;
   const auto n = static_cast<std::size_t>(s.initial_samples);
   const std::size_t P = shape_.param_count();
-  Parents none;
+  Parents& none = parents_;
   none.theta.resize(0, static_cast<Eigen::Index>(P));
-  Offspring off;
+  Offspring& off = offspring_;
   off.reset(n, P, 0);
   Rng rng(s.seed, Stream::kInitial, 0);
   MutateContext mctx{0, 0, &rng, repr_.get(), archive_.get()};
@@ -255,9 +261,10 @@ void Run::loop_zero() {
   if (static_cast<std::size_t>(off.theta.rows()) != n || static_cast<std::size_t>(off.theta.cols()) != P)
     throw Error("initial sampler '" + ex_.initial.type + "' returned a batch of the wrong shape");
 
-  std::vector<std::uint64_t> seeds(n);
+  std::vector<std::uint64_t>& seeds = seeds_;
+  seeds.resize(n);
   for (std::size_t i = 0; i < n; ++i) seeds[i] = Rng::derive_seed(s.seed, Stream::kEpisode, 0, 0, i);
-  Evaluations ev;
+  Evaluations& ev = evaluations_buffer_;
   evaluator_->evaluate(off.theta, seeds, ev);
   evaluations_ += n;
   session_evaluations_ += n;
@@ -291,12 +298,14 @@ void Run::map_elites_loop(int loop) {
 
   std::vector<std::int64_t> touched;  // cells inserted or replaced this loop, first touch first
   std::vector<std::uint8_t> touched_flag(static_cast<std::size_t>(archive_->cells()), 0);
-  Parents parents;
-  Offspring off;
-  Vector recn;
-  Evaluations ev;
-  std::vector<std::uint64_t> seeds(batch);
-  std::vector<Insertion> outcomes(batch);
+  Parents& parents = parents_;
+  Offspring& off = offspring_;
+  Vector& recn = recn_;
+  Evaluations& ev = evaluations_buffer_;
+  std::vector<std::uint64_t>& seeds = seeds_;
+  seeds.resize(batch);
+  std::vector<Insertion>& outcomes = outcomes_;
+  outcomes.resize(batch);
   for (int it = 0; it < s.iterations; ++it) {
     if (mutator_->uses_parents()) {
       if (archive_->size() == 0) throw Error("the archive is empty after loop 0: no initial sample could be described");

@@ -33,6 +33,11 @@ struct Progress {
   std::string note;  // e.g. "training autoencoder"
 };
 
+// Keeps freed memory in the process instead of returning it to the kernel after every episode
+// (glibc trims and unmaps eagerly; Box2D worlds and batch matrices are allocated over and over).
+// Process-wide, so only executables call it (qdrun, benchmarks).
+void tune_allocator();
+
 struct RunOptions {
   int workers = 0;            // 0 = from the experiment (then all cores)
   int stop_after_loop = -1;   // stop cleanly after this loop's checkpoint (-1 = run to the end)
@@ -100,6 +105,15 @@ class Run {
   std::unique_ptr<Dataset> dataset_;
   std::vector<std::string> plugin_lines_;
   std::vector<std::string> mutator_metric_names_;
+
+  // Batch buffers reused across iterations and loops: fresh multi-megabyte allocations every loop
+  // cost page faults that showed up as framework overhead.
+  Parents parents_;
+  Offspring offspring_;
+  Vector recn_;
+  Evaluations evaluations_buffer_;
+  std::vector<std::uint64_t> seeds_;
+  std::vector<Insertion> outcomes_;
 
   int next_loop_ = 0;
   std::uint64_t evaluations_ = 0;
