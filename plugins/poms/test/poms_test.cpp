@@ -46,7 +46,11 @@ class EluModel final : public qd::Representation {
         w1_(gaussian(hidden, latent, 3)),
         b1_(gaussian(1, hidden, 4)),
         w2_(gaussian(params, hidden, 5)),
-        b2_(gaussian(1, params, 6)) {}
+        b2_(gaussian(1, params, 6)) {
+    // Latent directions 0 and 1 drive nearly the same hidden units, so JᵀJ has a strong
+    // off-diagonal term by construction, whatever the random draws.
+    if (latent > 1) w1_.col(1) = w1_.col(0) + 0.3 * w1_.col(1);
+  }
 
   int latent_size() const noexcept override { return static_cast<int>(w1_.cols()); }
   qd::FitReport fit(const qd::Dataset&, const qd::FitContext&) override { return {}; }
