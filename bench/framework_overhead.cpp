@@ -39,8 +39,10 @@ int main(int argc, char** argv) {
     Document doc = Document::read(argv[1]);
     int workers = 1;
     for (int i = 2; i + 1 < argc; ++i) {
-      if (std::string(argv[i]) == "--set") doc.apply_override(argv[++i]);
-      else if (std::string(argv[i]) == "--workers") workers = std::stoi(argv[++i]);
+      if (std::string(argv[i]) == "--set")
+        doc.apply_override(argv[++i]);
+      else if (std::string(argv[i]) == "--workers")
+        workers = std::stoi(argv[++i]);
     }
     doc.apply_override("output.dir=\"" + out.string() + "\"");
     doc.apply_override("evaluation.workers=" + std::to_string(workers));
@@ -65,10 +67,12 @@ int main(int argc, char** argv) {
     const auto P = static_cast<Eigen::Index>(shape.param_count());
     std::vector<std::pair<Rng, std::size_t>> batches;  // (stream, batch size) in run order
     if (same_policies) {
-      batches.emplace_back(Rng(ex.settings.seed, Stream::kInitial, 0), static_cast<std::size_t>(ex.settings.initial_samples));
+      batches.emplace_back(Rng(ex.settings.seed, Stream::kInitial, 0),
+                           static_cast<std::size_t>(ex.settings.initial_samples));
       for (int loop = 1; loop < ex.settings.loops; ++loop)
         for (int it = 0; it < ex.settings.iterations; ++it)
-          batches.emplace_back(Rng(ex.settings.seed, Stream::kMutation, static_cast<std::uint64_t>(loop), static_cast<std::uint64_t>(it)),
+          batches.emplace_back(Rng(ex.settings.seed, Stream::kMutation, static_cast<std::uint64_t>(loop),
+                                   static_cast<std::uint64_t>(it)),
                                static_cast<std::size_t>(ex.settings.batch));
     } else {
       for (std::uint64_t done = 0, k = 0; done < total; done += static_cast<std::uint64_t>(ex.settings.batch), ++k)
@@ -105,11 +109,12 @@ int main(int argc, char** argv) {
 
     const double bare_rate = static_cast<double>(bare_evals) / bare_s;
     const double run_rate = static_cast<double>(total) / run_s;
-    std::printf("experiment=%s params=%zu evaluations=%llu workers=%d same_policies=%d bare_us_per_step=%.3f\n", argv[1],
-                shape.param_count(), static_cast<unsigned long long>(total), workers, same_policies ? 1 : 0,
+    std::printf("experiment=%s params=%zu evaluations=%llu workers=%d same_policies=%d bare_us_per_step=%.3f\n",
+                argv[1], shape.param_count(), static_cast<unsigned long long>(total), workers, same_policies ? 1 : 0,
                 1e6 * bare_s / static_cast<double>(bare_steps));
-    std::printf("bare_loop_evals_per_s=%.1f qdrun_evals_per_s=%.1f ratio=%.4f bare_us_per_eval=%.2f qdrun_us_per_eval=%.2f\n",
-                bare_rate, run_rate, run_rate / bare_rate, 1e6 / bare_rate, 1e6 / run_rate);
+    std::printf(
+        "bare_loop_evals_per_s=%.1f qdrun_evals_per_s=%.1f ratio=%.4f bare_us_per_eval=%.2f qdrun_us_per_eval=%.2f\n",
+        bare_rate, run_rate, run_rate / bare_rate, 1e6 / bare_rate, 1e6 / run_rate);
     fs::remove_all(out);
     return 0;
   } catch (const std::exception& e) {

@@ -32,10 +32,11 @@ void ProgressPrinter::operator()(const runtime::Progress& p) {
   const double rate = p.wall_seconds > 0 ? static_cast<double>(p.session_evaluations) / p.wall_seconds : 0.0;
   const double eta = rate > 0 ? static_cast<double>(p.total_evaluations - p.evaluations) / rate : NAN;
   char line[512];
-  std::snprintf(line, sizeof(line), "%s loop %d/%d | evals %s/%s | %.0f evals/s | coverage %.2f%% (%s cells) | ETA %s%s%s",
-                label_.c_str(), p.loop, p.loops - 1, format_count(p.evaluations).c_str(),
-                format_count(p.total_evaluations).c_str(), rate, 100.0 * p.coverage, format_count(p.elites).c_str(),
-                format_duration(eta).c_str(), p.note.empty() ? "" : " | ", p.note.c_str());
+  std::snprintf(line, sizeof(line),
+                "%s loop %d/%d | evals %s/%s | %.0f evals/s | coverage %.2f%% (%s cells) | ETA %s%s%s", label_.c_str(),
+                p.loop, p.loops - 1, format_count(p.evaluations).c_str(), format_count(p.total_evaluations).c_str(),
+                rate, 100.0 * p.coverage, format_count(p.elites).c_str(), format_duration(eta).c_str(),
+                p.note.empty() ? "" : " | ", p.note.c_str());
   if (terminal_) {
     // Redraw at most ~10 times a second; always draw loop ends.
     if (!p.loop_finished && p.note.empty() && p.wall_seconds - last_draw_ < 0.1) return;

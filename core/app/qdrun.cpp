@@ -12,11 +12,11 @@
 
 #include <boost/program_options.hpp>
 
+#include <unistd.h>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
 #include <map>
-#include <unistd.h>
 
 namespace po = boost::program_options;
 namespace fs = std::filesystem;
@@ -69,8 +69,8 @@ int list_components(const Registry& reg) {
     std::printf("%ss:\n", to_string(kind));
     for (const auto& c : reg.components()) {
       if (c.info->kind != kind) continue;
-      std::printf("  %-20s %s\n  %-20s   (plugin %s %s, %s)\n", c.info->name, c.info->summary ? c.info->summary : "", "",
-                  c.plugin->info->plugin_name, c.plugin->info->plugin_version, c.plugin->path.c_str());
+      std::printf("  %-20s %s\n  %-20s   (plugin %s %s, %s)\n", c.info->name, c.info->summary ? c.info->summary : "",
+                  "", c.plugin->info->plugin_name, c.plugin->info->plugin_version, c.plugin->path.c_str());
     }
   }
   if (!reg.rejected().empty()) {
@@ -118,7 +118,9 @@ int run_one(const Cli& cli, const std::string& command_line) {
     doc = Document::read(cfg);
     for (const auto& s : cli.sets) {
       if (!resumable_override(s))
-        throw InputError("--set " + s + ": only experiment.loops, evaluation.workers and output.snapshot_every may change when resuming");
+        throw InputError(
+            "--set " + s +
+            ": only experiment.loops, evaluation.workers and output.snapshot_every may change when resuming");
       doc.apply_override(s);
     }
     if (cli.seed >= 0 || !cli.output.empty()) throw InputError("--seed and --output cannot be combined with --resume");
@@ -183,8 +185,9 @@ int replay(const Cli& cli) {
   std::int64_t cell = -1;
   std::vector<double> values(run.descriptor().grid().shape.size());
   if (t.status == EvalStatus::kOk) run.descriptor().describe(&t, 1, &cell, values.data());
-  std::printf("replayed cell %lld: %s, %d steps, lands in cell %lld%s\nwrote %s\n", cli.cell, to_string(t.status), t.steps,
-              static_cast<long long>(cell), cell == cli.cell ? " (as stored)" : " (differs from the stored cell)", svg.c_str());
+  std::printf("replayed cell %lld: %s, %d steps, lands in cell %lld%s\nwrote %s\n", cli.cell, to_string(t.status),
+              t.steps, static_cast<long long>(cell),
+              cell == cli.cell ? " (as stored)" : " (differs from the stored cell)", svg.c_str());
   return kExitOk;
 }
 

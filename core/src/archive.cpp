@@ -7,7 +7,10 @@
 namespace qd {
 
 Archive::Archive(std::int64_t cells, std::size_t param_count, std::size_t descriptor_dims)
-    : cells_(cells), param_count_(param_count), dims_(descriptor_dims), cell_slot_(static_cast<std::size_t>(cells), -1) {
+    : cells_(cells),
+      param_count_(param_count),
+      dims_(descriptor_dims),
+      cell_slot_(static_cast<std::size_t>(cells), -1) {
   QD_CHECK(cells > 0, "archive needs at least one cell");
 }
 

@@ -49,7 +49,9 @@ struct Config::Impl {
 };
 
 Config::Config() : impl_(std::make_unique<Impl>()) {}
-Config::Config(std::string table) : impl_(std::make_unique<Impl>()) { impl_->table = std::move(table); }
+Config::Config(std::string table) : impl_(std::make_unique<Impl>()) {
+  impl_->table = std::move(table);
+}
 Config::Config(const Config& o) : impl_(std::make_unique<Impl>(*o.impl_)) {}
 Config& Config::operator=(const Config& o) {
   if (this != &o) *impl_ = *o.impl_;
@@ -59,22 +61,34 @@ Config::Config(Config&&) noexcept = default;
 Config& Config::operator=(Config&&) noexcept = default;
 Config::~Config() = default;
 
-const std::string& Config::table() const noexcept { return impl_->table; }
+const std::string& Config::table() const noexcept {
+  return impl_->table;
+}
 
 std::string Config::where(const std::string& key) const {
   const Impl::Entry* e = impl_->find(key);
   return e ? e->where : std::string("default");
 }
-bool Config::has(const std::string& key) const noexcept { return impl_->find(key) != nullptr; }
+bool Config::has(const std::string& key) const noexcept {
+  return impl_->find(key) != nullptr;
+}
 bool Config::is_set(const std::string& key) const noexcept {
   const Impl::Entry* e = impl_->find(key);
   return e && e->user_set;
 }
 
-bool Config::get_bool(const std::string& key) const { return impl_->get<bool>(key, "bool"); }
-std::int64_t Config::get_int(const std::string& key) const { return impl_->get<std::int64_t>(key, "integer"); }
-double Config::get_float(const std::string& key) const { return impl_->get<double>(key, "float"); }
-std::string Config::get_string(const std::string& key) const { return impl_->get<std::string>(key, "string"); }
+bool Config::get_bool(const std::string& key) const {
+  return impl_->get<bool>(key, "bool");
+}
+std::int64_t Config::get_int(const std::string& key) const {
+  return impl_->get<std::int64_t>(key, "integer");
+}
+double Config::get_float(const std::string& key) const {
+  return impl_->get<double>(key, "float");
+}
+std::string Config::get_string(const std::string& key) const {
+  return impl_->get<std::string>(key, "string");
+}
 std::vector<std::int64_t> Config::get_int_list(const std::string& key) const {
   return impl_->get<std::vector<std::int64_t>>(key, "integer list");
 }
@@ -88,10 +102,18 @@ std::vector<std::string> Config::keys() const {
   return out;
 }
 
-void Config::set_bool(const std::string& k, bool v, std::string w) { impl_->set(k, v, std::move(w)); }
-void Config::set_int(const std::string& k, std::int64_t v, std::string w) { impl_->set(k, v, std::move(w)); }
-void Config::set_float(const std::string& k, double v, std::string w) { impl_->set(k, v, std::move(w)); }
-void Config::set_string(const std::string& k, std::string v, std::string w) { impl_->set(k, std::move(v), std::move(w)); }
+void Config::set_bool(const std::string& k, bool v, std::string w) {
+  impl_->set(k, v, std::move(w));
+}
+void Config::set_int(const std::string& k, std::int64_t v, std::string w) {
+  impl_->set(k, v, std::move(w));
+}
+void Config::set_float(const std::string& k, double v, std::string w) {
+  impl_->set(k, v, std::move(w));
+}
+void Config::set_string(const std::string& k, std::string v, std::string w) {
+  impl_->set(k, std::move(v), std::move(w));
+}
 void Config::set_int_list(const std::string& k, std::vector<std::int64_t> v, std::string w) {
   impl_->set(k, std::move(v), std::move(w));
 }
@@ -104,13 +126,13 @@ void Config::set_from_text(const ParamSpec& spec, const std::string& text, std::
   try {
     t = toml::parse("v = " + text, std::string_view{"<default>"});
   } catch (const toml::parse_error& e) {
-    throw ConfigError(spec.key, "default value '" + text + "' of " + spec.key + " is not TOML: " +
-                                    std::string(e.description()));
+    throw ConfigError(spec.key,
+                      "default value '" + text + "' of " + spec.key + " is not TOML: " + std::string(e.description()));
   }
   const toml::node& n = *t.get("v");
   auto bad = [&]() {
-    return ConfigError(spec.key, std::string("default value '") + text + "' of " + spec.key + " is not a " +
-                                     to_string(spec.type));
+    return ConfigError(
+        spec.key, std::string("default value '") + text + "' of " + spec.key + " is not a " + to_string(spec.type));
   };
   switch (spec.type) {
     case ParamType::kBool:

@@ -17,7 +17,9 @@ Descriptor::~Descriptor() = default;
 Representation::~Representation() = default;
 Mutator::~Mutator() = default;
 
-bool Environment::draw_svg(const Trace&, std::ostream&) const { return false; }
+bool Environment::draw_svg(const Trace&, std::ostream&) const {
+  return false;
+}
 
 void Representation::decoder_vjp(const Matrix& z, const Matrix& v, Matrix& out) const {
   QD_CHECK(z.rows() == v.rows(), "decoder_vjp: z and v must have the same number of rows");
@@ -49,32 +51,46 @@ void Offspring::reset(std::size_t count, std::size_t params, std::size_t latent_
 
 const char* to_string(EvalStatus status) noexcept {
   switch (status) {
-    case EvalStatus::kOk: return "ok";
-    case EvalStatus::kInvalidAction: return "invalid-action";
-    case EvalStatus::kDiverged: return "diverged";
-    case EvalStatus::kFailed: return "failed";
+    case EvalStatus::kOk:
+      return "ok";
+    case EvalStatus::kInvalidAction:
+      return "invalid-action";
+    case EvalStatus::kDiverged:
+      return "diverged";
+    case EvalStatus::kFailed:
+      return "failed";
   }
   return "unknown";
 }
 
 const char* to_string(Kind kind) noexcept {
   switch (kind) {
-    case Kind::kEnvironment: return "environment";
-    case Kind::kDescriptor: return "descriptor";
-    case Kind::kRepresentation: return "representation";
-    case Kind::kMutator: return "mutator";
+    case Kind::kEnvironment:
+      return "environment";
+    case Kind::kDescriptor:
+      return "descriptor";
+    case Kind::kRepresentation:
+      return "representation";
+    case Kind::kMutator:
+      return "mutator";
   }
   return "unknown";
 }
 
 const char* to_string(ParamType type) noexcept {
   switch (type) {
-    case ParamType::kBool: return "bool";
-    case ParamType::kInteger: return "integer";
-    case ParamType::kFloat: return "float";
-    case ParamType::kString: return "string";
-    case ParamType::kIntegerList: return "integer list";
-    case ParamType::kFloatList: return "float list";
+    case ParamType::kBool:
+      return "bool";
+    case ParamType::kInteger:
+      return "integer";
+    case ParamType::kFloat:
+      return "float";
+    case ParamType::kString:
+      return "string";
+    case ParamType::kIntegerList:
+      return "integer list";
+    case ParamType::kFloatList:
+      return "float list";
   }
   return "unknown";
 }

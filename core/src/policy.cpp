@@ -15,7 +15,8 @@ PolicyShape::PolicyShape(int inputs, std::vector<int> hidden, int outputs) : hid
   sizes_.push_back(outputs);
   offsets_.push_back(0);
   for (std::size_t l = 0; l + 1 < sizes_.size(); ++l)
-    offsets_.push_back(offsets_.back() + static_cast<std::size_t>(sizes_[l] + 1) * static_cast<std::size_t>(sizes_[l + 1]));
+    offsets_.push_back(offsets_.back() +
+                       static_cast<std::size_t>(sizes_[l] + 1) * static_cast<std::size_t>(sizes_[l + 1]));
 }
 
 Policy::Policy(const PolicyShape& shape) : shape_(shape) {

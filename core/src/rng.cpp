@@ -54,7 +54,7 @@ std::uint64_t Rng::below(std::uint64_t n) noexcept {
 }
 
 namespace {
-constexpr double kZigR = 3.442619855899;      // start of the tail
+constexpr double kZigR = 3.442619855899;       // start of the tail
 constexpr double kZigV = 9.91256303526217e-3;  // area of each layer
 
 // Marsaglia & Tsang, "The Ziggurat Method for Generating Random Variables" (2000): 128 layers of
@@ -63,7 +63,8 @@ detail::ZigguratTables make_ziggurat() {
   detail::ZigguratTables t{};
   t.x[0] = kZigV / std::exp(-0.5 * kZigR * kZigR);
   t.x[1] = kZigR;
-  for (int i = 1; i < 127; ++i) t.x[i + 1] = std::sqrt(-2.0 * std::log(kZigV / t.x[i] + std::exp(-0.5 * t.x[i] * t.x[i])));
+  for (int i = 1; i < 127; ++i)
+    t.x[i + 1] = std::sqrt(-2.0 * std::log(kZigV / t.x[i] + std::exp(-0.5 * t.x[i] * t.x[i])));
   t.x[128] = 0.0;
   for (int i = 0; i <= 128; ++i) t.f[i] = std::exp(-0.5 * t.x[i] * t.x[i]);
   for (int i = 0; i < 128; ++i) t.ratio[i] = t.x[i + 1] / t.x[i];

@@ -4,7 +4,9 @@
 
 namespace qd::state {
 
-void write_tag(std::ostream& out, const char (&tag)[5]) { out.write(tag, 4); }
+void write_tag(std::ostream& out, const char (&tag)[5]) {
+  out.write(tag, 4);
+}
 
 void expect_tag(std::istream& in, const char (&tag)[5]) {
   char got[5] = {0, 0, 0, 0, 0};

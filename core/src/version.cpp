@@ -1,7 +1,13 @@
 #include <qd/version.hpp>
 
 namespace qd {
-const char* build_fingerprint() noexcept { return QD_BUILD_FINGERPRINT; }
-const char* version_string() noexcept { return QD_VERSION_STRING; }
-const char* git_revision() noexcept { return QD_GIT_REVISION; }
+const char* build_fingerprint() noexcept {
+  return QD_BUILD_FINGERPRINT;
+}
+const char* version_string() noexcept {
+  return QD_VERSION_STRING;
+}
+const char* git_revision() noexcept {
+  return QD_GIT_REVISION;
+}
 }  // namespace qd

@@ -15,7 +15,9 @@ ArmEnvironment::ArmEnvironment(const Config& cfg, const BuildContext&)
       record_every_(static_cast<int>(cfg.get_int("record_every"))),
       dt_(cfg.get_float("dt")) {}
 
-EnvironmentInfo ArmEnvironment::info() const { return {joints_ + 3, joints_, steps_, "arm-endpoint"}; }
+EnvironmentInfo ArmEnvironment::info() const {
+  return {joints_ + 3, joints_, steps_, "arm-endpoint"};
+}
 
 void ArmEnvironment::end_effector(const double* angles, double& x, double& y) const {
   const double link = 1.0 / joints_;
@@ -43,7 +45,8 @@ void ArmEnvironment::rollout(const RolloutBatch& batch, Trace* traces) const {
     t.main.push(x, y);
     t.aux.data.insert(t.aux.data.end(), angles.begin(), angles.end());
     for (int step = 0; step < steps_; ++step) {
-      for (int j = 0; j < joints_; ++j) obs[static_cast<std::size_t>(j)] = static_cast<float>(angles[static_cast<std::size_t>(j)]);
+      for (int j = 0; j < joints_; ++j)
+        obs[static_cast<std::size_t>(j)] = static_cast<float>(angles[static_cast<std::size_t>(j)]);
       obs[static_cast<std::size_t>(joints_)] = static_cast<float>(x);
       obs[static_cast<std::size_t>(joints_) + 1] = static_cast<float>(y);
       obs[static_cast<std::size_t>(joints_) + 2] = static_cast<float>(step) / static_cast<float>(steps_);
@@ -73,7 +76,8 @@ void ArmEnvironment::rollout(const RolloutBatch& batch, Trace* traces) const {
 bool ArmEnvironment::draw_svg(const Trace& trace, std::ostream& out) const {
   out << "<svg xmlns=\"http://www.w3.org/2000/svg\" viewBox=\"-1.1 -1.1 2.2 2.2\" width=\"440\" height=\"440\">\n"
       << "<g transform=\"scale(1,-1)\"><rect x=\"-1\" y=\"-1\" width=\"2\" height=\"2\" fill=\"none\" stroke=\"#999\" "
-         "stroke-width=\"0.005\"/>\n<circle cx=\"0\" cy=\"0\" r=\"1\" fill=\"none\" stroke=\"#ccc\" stroke-width=\"0.005\"/>\n"
+         "stroke-width=\"0.005\"/>\n<circle cx=\"0\" cy=\"0\" r=\"1\" fill=\"none\" stroke=\"#ccc\" "
+         "stroke-width=\"0.005\"/>\n"
       << "<polyline fill=\"none\" stroke=\"#1f77b4\" stroke-width=\"0.01\" points=\"";
   for (std::size_t r = 0; r < trace.main.rows(); ++r) out << trace.main.at(r, 0) << "," << trace.main.at(r, 1) << " ";
   out << "\"/>\n";
@@ -94,7 +98,8 @@ bool ArmEnvironment::draw_svg(const Trace& trace, std::ostream& out) const {
   return true;
 }
 
-EndpointDescriptor::EndpointDescriptor(const Config& cfg, const BuildContext&) : bins_(static_cast<int>(cfg.get_int("bins"))) {}
+EndpointDescriptor::EndpointDescriptor(const Config& cfg, const BuildContext&)
+    : bins_(static_cast<int>(cfg.get_int("bins"))) {}
 
 GridSpec EndpointDescriptor::grid() const {
   GridSpec g;

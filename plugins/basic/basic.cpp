@@ -6,8 +6,12 @@
 
 namespace qd::basic {
 
-void NoRepresentation::encode(const Matrix&, Matrix&) const { QD_CHECK(false, "representation 'none' has no latent space"); }
-void NoRepresentation::decode(const Matrix&, Matrix&) const { QD_CHECK(false, "representation 'none' has no latent space"); }
+void NoRepresentation::encode(const Matrix&, Matrix&) const {
+  QD_CHECK(false, "representation 'none' has no latent space");
+}
+void NoRepresentation::decode(const Matrix&, Matrix&) const {
+  QD_CHECK(false, "representation 'none' has no latent space");
+}
 void NoRepresentation::decoder_jacobians(const Matrix&, std::vector<Matrix>&) const {
   QD_CHECK(false, "representation 'none' has no latent space");
 }

@@ -131,7 +131,8 @@ TEST(Loader, WrongKindIsAnActionableError) {
 
 TEST(Loader, DiscoveryRecordsRejectionsAndKeepsGoodLibraries) {
   Registry reg;
-  for (const char* d : {"bad_abi", "good", "no_entry", "garbage", "duplicate"}) reg.add_search_dir(fs::path(QD_TEST_PLUGIN_ROOT) / d);
+  for (const char* d : {"bad_abi", "good", "no_entry", "garbage", "duplicate"})
+    reg.add_search_dir(fs::path(QD_TEST_PLUGIN_ROOT) / d);
   reg.discover();
   EXPECT_NE(reg.find("test-counted"), nullptr);
   ASSERT_EQ(reg.rejected().size(), 4u);

@@ -2,7 +2,8 @@
 #include <qd/plugin.hpp>
 namespace {
 const qd::PluginInfo* entry() {
-  static const qd::PluginInfo info{qd::kPluginAbiVersion, sizeof(qd::PluginInfo) + 8, QD_BUILD_FINGERPRINT, "bad_size", "1", 0, nullptr};
+  static const qd::PluginInfo info{
+      qd::kPluginAbiVersion, sizeof(qd::PluginInfo) + 8, QD_BUILD_FINGERPRINT, "bad_size", "1", 0, nullptr};
   return &info;
 }
 }  // namespace

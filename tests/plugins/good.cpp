@@ -28,11 +28,15 @@ class Counted final : public qd::Mutator {
  public:
   Counted(const qd::Config&, const qd::BuildContext&) { ++g_live; }
   ~Counted() override { --g_live; }
-  void mutate(const qd::Parents& p, std::size_t, qd::MutateContext&, qd::Offspring& out) override { out.theta = p.theta; }
+  void mutate(const qd::Parents& p, std::size_t, qd::MutateContext&, qd::Offspring& out) override {
+    out.theta = p.theta;
+  }
 };
 }  // namespace
 
-extern "C" BOOST_SYMBOL_EXPORT int qd_test_live_instances() { return g_live.load(); }
+extern "C" BOOST_SYMBOL_EXPORT int qd_test_live_instances() {
+  return g_live.load();
+}
 
 QD_PLUGIN("good", "1.2.3",
           qd::component<FixedLatent>(qd::Kind::kRepresentation, "test-fixed-latent", "test", kLatentParams),

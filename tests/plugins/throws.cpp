@@ -10,7 +10,9 @@ class Throws final : public qd::Mutator {
 };
 class ThrowsConfig final : public qd::Mutator {
  public:
-  ThrowsConfig(const qd::Config&, const qd::BuildContext&) { throw qd::ConfigError("rate", "rate must not be 0.5 here"); }
+  ThrowsConfig(const qd::Config&, const qd::BuildContext&) {
+    throw qd::ConfigError("rate", "rate must not be 0.5 here");
+  }
   void mutate(const qd::Parents&, std::size_t, qd::MutateContext&, qd::Offspring&) override {}
 };
 }  // namespace

@@ -33,7 +33,8 @@ TEST(Archive, SelectionWithoutReplacementWhenLargeEnough) {
   a.select(50, r, p);
   std::set<std::int64_t> cells(p.cells.begin(), p.cells.end());
   EXPECT_EQ(cells.size(), 50u);  // a permutation of all elites
-  for (std::size_t i = 0; i < 50; ++i) EXPECT_EQ(p.recn_error[static_cast<Eigen::Index>(i)], static_cast<double>(p.cells[i]));
+  for (std::size_t i = 0; i < 50; ++i)
+    EXPECT_EQ(p.recn_error[static_cast<Eigen::Index>(i)], static_cast<double>(p.cells[i]));
 }
 
 TEST(Archive, SelectionWithReplacementWhenSmall) {

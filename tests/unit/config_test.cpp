@@ -86,9 +86,12 @@ TEST(Config, WrongTypeIsReported) {
 }
 
 TEST(Config, ZeroAndNegativeBudgetsAreOutOfRange) {
-  EXPECT_NE(error_of(replace(kValid, "loops = 2", "loops = 0")).find("experiment.loops = 0 is out of range"), std::string::npos);
-  EXPECT_NE(error_of(replace(kValid, "batch = 4", "batch = -3")).find("experiment.batch = -3 is out of range"), std::string::npos);
-  EXPECT_NE(error_of(replace(kValid, "sigma = 0.2", "sigma = -1.0")).find("mutator.sigma = -1 is out of range"), std::string::npos);
+  EXPECT_NE(error_of(replace(kValid, "loops = 2", "loops = 0")).find("experiment.loops = 0 is out of range"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(kValid, "batch = 4", "batch = -3")).find("experiment.batch = -3 is out of range"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(kValid, "sigma = 0.2", "sigma = -1.0")).find("mutator.sigma = -1 is out of range"),
+            std::string::npos);
 }
 
 TEST(Config, UnknownComponentListsTheKnownOnes) {
@@ -104,8 +107,9 @@ TEST(Config, ComponentOfTheWrongKind) {
 }
 
 TEST(Config, UnknownTableAndMissingMutator) {
-  EXPECT_NE(error_of(std::string(kValid) + "\n[mutatr]\nx = 1\n").find("unknown table 'mutatr' (did you mean 'mutator'?)"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of(std::string(kValid) + "\n[mutatr]\nx = 1\n").find("unknown table 'mutatr' (did you mean 'mutator'?)"),
+      std::string::npos);
   const std::string msg = error_of(replace(kValid, "[mutator]\ntype = \"iso\"\nsigma = 0.2", ""));
   EXPECT_NE(msg.find("[mutator] with a type is required"), std::string::npos) << msg;
 }
@@ -167,6 +171,7 @@ TEST(Config, LatentLargerThanParameterCountIsAConfigError) {
   } catch (const ConfigError& e) {
     const std::string msg = e.what();
     EXPECT_NE(msg.find("exp.toml:"), std::string::npos) << msg;
-    EXPECT_NE(msg.find("latent size 100000 is larger than the policy's parameter count 1379"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("latent size 100000 is larger than the policy's parameter count 1379"), std::string::npos)
+        << msg;
   }
 }

@@ -1,6 +1,6 @@
 // The evaluator gives identical results whatever the number of workers.
-#include "arm.hpp"
 #include "runtime/evaluator.hpp"
+#include "arm.hpp"
 
 #include <qd/rng.hpp>
 

@@ -13,8 +13,9 @@ TEST(Rng, SameKeySameStreamDifferentKeyDifferentStream) {
   Rng a(42, Stream::kMutation, 3, 7), b(42, Stream::kMutation, 3, 7), c(42, Stream::kMutation, 3, 8),
       d(43, Stream::kMutation, 3, 7), e(42, Stream::kSelection, 3, 7);
   std::vector<std::uint64_t> va, vb, vc, vd, ve;
-  for (int i = 0; i < 8; ++i) va.push_back(a.next()), vb.push_back(b.next()), vc.push_back(c.next()),
-                              vd.push_back(d.next()), ve.push_back(e.next());
+  for (int i = 0; i < 8; ++i)
+    va.push_back(a.next()), vb.push_back(b.next()), vc.push_back(c.next()), vd.push_back(d.next()),
+        ve.push_back(e.next());
   EXPECT_EQ(va, vb);
   EXPECT_NE(va, vc);
   EXPECT_NE(va, vd);

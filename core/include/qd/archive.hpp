@@ -19,8 +19,8 @@ namespace qd {
 
 // Selected parents: copies of the elites' rows.
 struct Parents {
-  Matrix theta;                       // n × P
-  Vector recn_error;                  // stored reconstruction errors (0 without a model)
+  Matrix theta;       // n × P
+  Vector recn_error;  // stored reconstruction errors (0 without a model)
   std::vector<std::int64_t> cells;
 };
 
@@ -50,8 +50,8 @@ class QD_EXPORT Archive {
 
   // Puts an individual into `cell`: adds it when the cell is empty; when occupied, replaces the
   // occupant if `replace` is true (the insertion rule's decision) and rejects it otherwise.
-  Insertion offer(std::int64_t cell, const double* params, const double* descriptor, double fitness,
-                  double recn_error, bool replace);
+  Insertion offer(std::int64_t cell, const double* params, const double* descriptor, double fitness, double recn_error,
+                  bool replace);
 
   // Draws n parents uniformly over occupied cells: without replacement when size() >= n, with
   // replacement otherwise (spec 3.3.3.1). Requires size() > 0.

@@ -22,9 +22,9 @@ class QD_EXPORT Component {
 // Run-wide facts a factory may need. Components are built in this order: environment,
 // descriptor (policy known from here on), representation, mutators.
 struct BuildContext {
-  std::uint64_t seed = 0;                // the run seed; derive streams with qd::Rng
-  const PolicyShape* policy = nullptr;   // null while the environment is being built
-  int latent_size = 0;                   // the representation's latent size (mutators only)
+  std::uint64_t seed = 0;               // the run seed; derive streams with qd::Rng
+  const PolicyShape* policy = nullptr;  // null while the environment is being built
+  int latent_size = 0;                  // the representation's latent size (mutators only)
 };
 
 }  // namespace qd

@@ -21,7 +21,7 @@ namespace qd {
 enum class ParamType : std::uint32_t {
   kBool = 0,
   kInteger = 1,
-  kFloat = 2,   // accepts TOML integers too
+  kFloat = 2,  // accepts TOML integers too
   kString = 3,
   kIntegerList = 4,
   kFloatList = 5,

@@ -30,7 +30,7 @@ struct EnvironmentInfo {
 // A batch of rollouts: rows [begin, end) of `params`, each with its own episode seed.
 struct RolloutBatch {
   const PolicyShape* shape = nullptr;
-  const Matrix* params = nullptr;            // N × P
+  const Matrix* params = nullptr;                // N × P
   const std::uint64_t* episode_seeds = nullptr;  // N seeds (deterministic environments ignore them)
   std::size_t begin = 0;
   std::size_t end = 0;

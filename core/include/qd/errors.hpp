@@ -60,5 +60,4 @@ class QD_EXPORT StateError : public Error {
 
 // Aborts with file and line when an invariant is broken. Active in every build type: the checks
 // sit outside inner loops, and a silently corrupted archive costs researchers far more.
-#define QD_CHECK(cond, msg) \
-  ((cond) ? static_cast<void>(0) : ::qd::check_failed(#cond, __FILE__, __LINE__, (msg)))
+#define QD_CHECK(cond, msg) ((cond) ? static_cast<void>(0) : ::qd::check_failed(#cond, __FILE__, __LINE__, (msg)))

@@ -61,10 +61,10 @@ struct Feedback {
   int loop = 0;
   int iteration = 0;
   std::size_t offspring = 0;
-  std::size_t added = 0;      // new cells
-  std::size_t replaced = 0;   // occupants replaced
+  std::size_t added = 0;     // new cells
+  std::size_t replaced = 0;  // occupants replaced
   std::size_t rejected = 0;
-  std::size_t invalid = 0;    // failed evaluations or undescribable traces
+  std::size_t invalid = 0;                           // failed evaluations or undescribable traces
   const std::vector<Insertion>* outcomes = nullptr;  // one per offspring, in order
 };
 

@@ -70,29 +70,33 @@ using PluginEntryFn = const PluginInfo* (*)();
 
 template <class T, std::size_t N>
 ComponentInfo component(Kind kind, const char* name, const char* summary, const ParamSpec (&params)[N]) {
-  return {kind, name, summary, params, static_cast<std::uint32_t>(N),
+  return {kind,
+          name,
+          summary,
+          params,
+          static_cast<std::uint32_t>(N),
           [](const Config& c, const BuildContext& b) -> Component* { return new T(c, b); }};
 }
 template <class T>
 ComponentInfo component(Kind kind, const char* name, const char* summary) {
-  return {kind, name, summary, nullptr, 0u,
-          [](const Config& c, const BuildContext& b) -> Component* { return new T(c, b); }};
+  return {kind,    name, summary,
+          nullptr, 0u,   [](const Config& c, const BuildContext& b) -> Component* { return new T(c, b); }};
 }
 
 }  // namespace qd
 
-#define QD_PLUGIN(NAME, VERSION, ...)                                                                    \
-  namespace {                                                                                            \
-  const ::qd::PluginInfo* qd_plugin_entry_impl() {                                                       \
-    static const ::qd::ComponentInfo components[] = {__VA_ARGS__};                                      \
-    static const ::qd::PluginInfo info{::qd::kPluginAbiVersion,                                          \
-                                       static_cast<std::uint32_t>(sizeof(::qd::PluginInfo)),             \
-                                       QD_BUILD_FINGERPRINT,                                             \
-                                       NAME,                                                             \
-                                       VERSION,                                                          \
+#define QD_PLUGIN(NAME, VERSION, ...)                                                                          \
+  namespace {                                                                                                  \
+  const ::qd::PluginInfo* qd_plugin_entry_impl() {                                                             \
+    static const ::qd::ComponentInfo components[] = {__VA_ARGS__};                                             \
+    static const ::qd::PluginInfo info{::qd::kPluginAbiVersion,                                                \
+                                       static_cast<std::uint32_t>(sizeof(::qd::PluginInfo)),                   \
+                                       QD_BUILD_FINGERPRINT,                                                   \
+                                       NAME,                                                                   \
+                                       VERSION,                                                                \
                                        static_cast<std::uint32_t>(sizeof(components) / sizeof(components[0])), \
-                                       components};                                                      \
-    return &info;                                                                                        \
-  }                                                                                                      \
-  }                                                                                                      \
+                                       components};                                                            \
+    return &info;                                                                                              \
+  }                                                                                                            \
+  }                                                                                                            \
   BOOST_DLL_ALIAS(qd_plugin_entry_impl, qd_plugin_entry_v1)

@@ -33,7 +33,7 @@ class QD_EXPORT PolicyShape {
 
  private:
   std::vector<int> hidden_;
-  std::vector<int> sizes_;           // inputs, hidden..., outputs
+  std::vector<int> sizes_;            // inputs, hidden..., outputs
   std::vector<std::size_t> offsets_;  // layers + 1 entries; last = P
 };
 

@@ -25,8 +25,8 @@ namespace qd {
 
 struct FitContext {
   int loop = 0;
-  std::uint64_t seed = 0;   // run seed
-  std::string run_dir;      // where per-epoch logs go; empty = do not log
+  std::uint64_t seed = 0;  // run seed
+  std::string run_dir;     // where per-epoch logs go; empty = do not log
 };
 
 struct FitReport {

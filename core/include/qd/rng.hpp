@@ -20,13 +20,13 @@ namespace qd {
 
 // What a stream is for. Plugins use kPlugin plus their own sub-keys.
 enum class Stream : std::uint64_t {
-  kInitial = 1,     // loop-0 sampling            (key: loop)
-  kSelection = 2,   // parent selection           (key: loop, iteration)
-  kMutation = 3,    // mutation operators          (key: loop, iteration)
-  kInsertion = 4,   // coin-flip replacements      (key: loop, iteration)
-  kEpisode = 5,     // per-episode seeds           (key: loop, iteration, offspring)
-  kTraining = 6,    // representation training    (key: loop)
-  kModelInit = 7,   // representation weights      (key: none)
+  kInitial = 1,    // loop-0 sampling            (key: loop)
+  kSelection = 2,  // parent selection           (key: loop, iteration)
+  kMutation = 3,   // mutation operators          (key: loop, iteration)
+  kInsertion = 4,  // coin-flip replacements      (key: loop, iteration)
+  kEpisode = 5,    // per-episode seeds           (key: loop, iteration, offspring)
+  kTraining = 6,   // representation training    (key: loop)
+  kModelInit = 7,  // representation weights      (key: none)
   kPlugin = 100,
 };
 
@@ -74,7 +74,7 @@ class QD_EXPORT Rng {
   // Standard normal. The rectangle test (~99 % of draws) is inline; the rest is out of line.
   double normal() noexcept {
     const std::uint64_t bits = next();
-    const auto layer = static_cast<unsigned>(bits & 0x7F);                          // low 7 bits
+    const auto layer = static_cast<unsigned>(bits & 0x7F);                     // low 7 bits
     const double u = 2.0 * static_cast<double>(bits >> 11) * 0x1.0p-53 - 1.0;  // top 53 bits
     if (std::fabs(u) < detail::kZiggurat.ratio[layer]) return u * detail::kZiggurat.x[layer];
     return normal_outside_rectangle(layer, u);

@@ -41,7 +41,8 @@ template <class T>
 void write_vector(std::ostream& out, const std::vector<T>& v) {
   static_assert(std::is_trivially_copyable_v<T>);
   write<std::uint64_t>(out, v.size());
-  if (!v.empty()) out.write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(v.size() * sizeof(T)));
+  if (!v.empty())
+    out.write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(v.size() * sizeof(T)));
 }
 
 template <class T>
@@ -61,7 +62,8 @@ void write_matrix(std::ostream& out, const Eigen::PlainObjectBase<Derived>& m) {
   write<std::int64_t>(out, m.rows());
   write<std::int64_t>(out, m.cols());
   write<std::uint32_t>(out, sizeof(Scalar));
-  if (m.size()) out.write(reinterpret_cast<const char*>(m.data()), static_cast<std::streamsize>(m.size() * sizeof(Scalar)));
+  if (m.size())
+    out.write(reinterpret_cast<const char*>(m.data()), static_cast<std::streamsize>(m.size() * sizeof(Scalar)));
 }
 
 template <class Derived>

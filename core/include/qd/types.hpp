@@ -40,7 +40,9 @@ struct Series {
   std::size_t rows() const noexcept { return cols == 0 ? 0 : data.size() / static_cast<std::size_t>(cols); }
   const double* row(std::size_t i) const noexcept { return data.data() + i * static_cast<std::size_t>(cols); }
   const double* last() const noexcept { return row(rows() - 1); }
-  double at(std::size_t r, int c) const noexcept { return data[r * static_cast<std::size_t>(cols) + static_cast<std::size_t>(c)]; }
+  double at(std::size_t r, int c) const noexcept {
+    return data[r * static_cast<std::size_t>(cols) + static_cast<std::size_t>(c)];
+  }
   void truncate(std::size_t max_rows) {
     if (rows() > max_rows) data.resize(max_rows * static_cast<std::size_t>(cols));
   }
@@ -54,10 +56,10 @@ struct Series {
 // Everything one rollout produces. Environments fill it; descriptors read it.
 struct Trace {
   EvalStatus status = EvalStatus::kOk;
-  int steps = 0;          // world steps taken
-  double fitness = 0.0;   // environment-defined; unused by the paper's algorithms
-  Series main;            // environment-defined trajectory rows (see the environment's README)
-  Series aux;             // second trajectory table
+  int steps = 0;            // world steps taken
+  double fitness = 0.0;     // environment-defined; unused by the paper's algorithms
+  Series main;              // environment-defined trajectory rows (see the environment's README)
+  Series aux;               // second trajectory table
   std::vector<int> events;  // environment-defined events in order (e.g. wall contacts)
   std::string message;      // why status != kOk
 

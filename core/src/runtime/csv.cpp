@@ -2,11 +2,11 @@
 
 #include <qd/errors.hpp>
 
+#include <fcntl.h>
+#include <unistd.h>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
-#include <fcntl.h>
-#include <unistd.h>
 
 namespace qd::runtime {
 namespace fs = std::filesystem;
@@ -69,7 +69,8 @@ void commit_file(const fs::path& tmp, const fs::path& path) {
   std::error_code ec;
   fs::rename(tmp, path, ec);
   if (ec) throw Error("cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message());
-  const int dfd = ::open(path.parent_path().empty() ? "." : path.parent_path().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  const int dfd =
+      ::open(path.parent_path().empty() ? "." : path.parent_path().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dfd >= 0) {
     ::fsync(dfd);
     ::close(dfd);

@@ -31,9 +31,13 @@ std::string location(const toml::source_region& src) {
   return p + ":" + std::to_string(src.begin.line) + ":" + std::to_string(src.begin.column);
 }
 
-std::string location(const toml::node& n) { return location(n.source()); }
+std::string location(const toml::node& n) {
+  return location(n.source());
+}
 
-[[noreturn]] void fail_at(const toml::node& n, const std::string& msg) { throw InputError(location(n) + ": " + msg); }
+[[noreturn]] void fail_at(const toml::node& n, const std::string& msg) {
+  throw InputError(location(n) + ": " + msg);
+}
 
 std::size_t edit_distance(const std::string& a, const std::string& b) {
   std::vector<std::size_t> prev(b.size() + 1), cur(b.size() + 1);
@@ -122,17 +126,20 @@ toml::table parse_file(const fs::path& file, int depth) {
 // ---- Core schema --------------------------------------------------------------------------
 constexpr double kMaxInt = 9.0e15;
 const ParamSpec kExperimentParams[] = {
-    param_string("name", "\"\"", nullptr, "run name; the run directory is <output.dir>/<name>/seed-<seed> (default: file name)"),
+    param_string("name", "\"\"", nullptr,
+                 "run name; the run directory is <output.dir>/<name>/seed-<seed> (default: file name)"),
     param_int("seed", "0", 0, kMaxInt, "root seed; every random stream derives from it"),
     param_int("loops", "51", 1, 1e7, "loops including loop 0 (the initial random phase)"),
     param_int("iterations", "100", 1, 1e9, "MAP-Elites iterations per loop n >= 1"),
     param_int("batch", "200", 1, 1e7, "offspring (and selected parents) per iteration"),
     param_int("initial_samples", "2000", 1, 1e9, "policies sampled in loop 0"),
     param_string("insertion", "\"coin-flip\"", "coin-flip|fitness",
-                 "occupied cell: coin-flip = replace with replace_probability (reference); fitness = replace if strictly fitter"),
+                 "occupied cell: coin-flip = replace with replace_probability (reference); fitness = replace if "
+                 "strictly fitter"),
     param_float("replace_probability", "0.5", 0.0, 1.0, "replacement probability of the coin-flip rule"),
     param_string("dataset_order", "\"reference\"", "reference|insertion",
-                 "order of loop-0 dataset entries: reference = descending cell index (np.unique order), insertion = first found first"),
+                 "order of loop-0 dataset entries: reference = descending cell index (np.unique order), insertion = "
+                 "first found first"),
 };
 const ParamSpec kPolicyParams[] = {
     param_int_list("hidden", "[32, 32]", 1, 4096, "hidden layer sizes of the tanh MLP policy"),
@@ -152,12 +159,16 @@ struct ComponentTable {
   const char* default_type;  // nullptr = required
 };
 const ComponentTable kComponentTables[] = {
-    {"environment", Kind::kEnvironment, nullptr},   {"descriptor", Kind::kDescriptor, ""},
-    {"representation", Kind::kRepresentation, "none"}, {"mutator", Kind::kMutator, nullptr},
+    {"environment", Kind::kEnvironment, nullptr},
+    {"descriptor", Kind::kDescriptor, ""},
+    {"representation", Kind::kRepresentation, "none"},
+    {"mutator", Kind::kMutator, nullptr},
     {"initial", Kind::kMutator, "uniform"},
 };
 
-bool number_in_range(double v, const ParamSpec& s) { return v >= s.min && v <= s.max; }
+bool number_in_range(double v, const ParamSpec& s) {
+  return v >= s.min && v <= s.max;
+}
 
 std::string range_text(const ParamSpec& s) {
   std::ostringstream o;
@@ -271,10 +282,18 @@ void put_config(toml::table& out, const Config& cfg, const ParamSpec* specs, std
   for (std::size_t i = 0; i < count; ++i) {
     const ParamSpec& s = specs[i];
     switch (s.type) {
-      case ParamType::kBool: out.insert_or_assign(s.key, cfg.get_bool(s.key)); break;
-      case ParamType::kInteger: out.insert_or_assign(s.key, cfg.get_int(s.key)); break;
-      case ParamType::kFloat: out.insert_or_assign(s.key, cfg.get_float(s.key)); break;
-      case ParamType::kString: out.insert_or_assign(s.key, cfg.get_string(s.key)); break;
+      case ParamType::kBool:
+        out.insert_or_assign(s.key, cfg.get_bool(s.key));
+        break;
+      case ParamType::kInteger:
+        out.insert_or_assign(s.key, cfg.get_int(s.key));
+        break;
+      case ParamType::kFloat:
+        out.insert_or_assign(s.key, cfg.get_float(s.key));
+        break;
+      case ParamType::kString:
+        out.insert_or_assign(s.key, cfg.get_string(s.key));
+        break;
       case ParamType::kIntegerList: {
         toml::array a;
         for (auto x : cfg.get_int_list(s.key)) a.push_back(x);
@@ -310,7 +329,9 @@ Document Document::parse(const std::string& text, const std::string& source_name
   return d;
 }
 
-fs::path Document::file() const { return impl->file; }
+fs::path Document::file() const {
+  return impl->file;
+}
 
 void Document::apply_override(const std::string& assignment) {
   const std::size_t eq = assignment.find('=');
@@ -387,7 +408,8 @@ Experiment resolve(const Document& doc, const Registry& registry) {
   for (const auto& [k, v] : root) {
     const std::string key(k.str());
     if (std::find(allowed.begin(), allowed.end(), key) == allowed.end())
-      fail_at(v, "unknown table '" + key + "'" + suggestion(key, allowed) + "; experiment files have: " + join(allowed));
+      fail_at(v,
+              "unknown table '" + key + "'" + suggestion(key, allowed) + "; experiment files have: " + join(allowed));
   }
 
   Experiment ex;
@@ -395,8 +417,10 @@ Experiment resolve(const Document& doc, const Registry& registry) {
   ex.plugin_paths = doc.plugin_paths();
   const Config e = validate_table(sub_table(root, "experiment"), "experiment", kExperimentParams,
                                   std::size(kExperimentParams), "the core");
-  const Config p = validate_table(sub_table(root, "policy"), "policy", kPolicyParams, std::size(kPolicyParams), "the core");
-  const Config o = validate_table(sub_table(root, "output"), "output", kOutputParams, std::size(kOutputParams), "the core");
+  const Config p =
+      validate_table(sub_table(root, "policy"), "policy", kPolicyParams, std::size(kPolicyParams), "the core");
+  const Config o =
+      validate_table(sub_table(root, "output"), "output", kOutputParams, std::size(kOutputParams), "the core");
   const Config w = validate_table(sub_table(root, "evaluation"), "evaluation", kEvaluationParams,
                                   std::size(kEvaluationParams), "the core");
   auto& s = ex.settings;
@@ -448,8 +472,7 @@ Experiment resolve(const Document& doc, const Registry& registry) {
       cc->type = ct.default_type;
     } else if (ct.default_type) {
       // Descriptor: the environment's default, chosen once the environment exists.
-      if (t && !t->empty())
-        fail_at(*t, "[descriptor] sets options but no type; add type = \"<descriptor name>\"");
+      if (t && !t->empty()) fail_at(*t, "[descriptor] sets options but no type; add type = \"<descriptor name>\"");
       continue;
     } else {
       throw InputError((ex.file.empty() ? std::string("<experiment>") : ex.file.string()) + ": [" + table +
@@ -458,7 +481,8 @@ Experiment resolve(const Document& doc, const Registry& registry) {
     try {
       cc->entry = &registry.require(cc->type, ct.kind);
     } catch (const InputError& err) {
-      throw InputError((type_node ? location(*type_node) : std::string("default")) + ": " + table + ".type: " + err.what());
+      throw InputError((type_node ? location(*type_node) : std::string("default")) + ": " + table +
+                       ".type: " + err.what());
     }
     const ComponentInfo& info = *cc->entry->info;
     cc->config = validate_table(t, table, info.params, info.param_count,

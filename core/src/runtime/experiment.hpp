@@ -18,11 +18,11 @@ namespace qd::runtime {
 struct ExperimentSettings {
   std::string name;
   std::uint64_t seed = 0;
-  int loops = 0;             // loop 0 (initial sampling) included
-  int iterations = 0;        // MAP-Elites iterations per loop n >= 1
-  int batch = 0;             // offspring per iteration
-  int initial_samples = 0;   // loop-0 samples
-  std::string insertion;     // "coin-flip" | "fitness"
+  int loops = 0;            // loop 0 (initial sampling) included
+  int iterations = 0;       // MAP-Elites iterations per loop n >= 1
+  int batch = 0;            // offspring per iteration
+  int initial_samples = 0;  // loop-0 samples
+  std::string insertion;    // "coin-flip" | "fitness"
   double replace_probability = 0.5;
   std::string dataset_order;  // "reference" | "insertion"
   std::vector<int> hidden;
@@ -34,8 +34,8 @@ struct ExperimentSettings {
 
 // One component table after validation.
 struct ComponentConfig {
-  std::string table;     // "environment", "mutator", ...
-  std::string type;      // component name
+  std::string table;  // "environment", "mutator", ...
+  std::string type;   // component name
   const ComponentEntry* entry = nullptr;
   Config config;
 };
@@ -44,7 +44,7 @@ struct Experiment {
   std::filesystem::path file;  // the experiment file (empty when built in memory)
   ExperimentSettings settings;
   ComponentConfig environment, descriptor, representation, mutator, initial;
-  std::string resolved_toml;  // every setting with defaults filled in
+  std::string resolved_toml;              // every setting with defaults filled in
   std::vector<std::string> plugin_paths;  // [plugins] path, made absolute
 };
 

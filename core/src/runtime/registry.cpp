@@ -118,7 +118,8 @@ std::shared_ptr<LoadedPlugin> Registry::load(const fs::path& path) {
   std::set<std::string> own;
   for (std::uint32_t i = 0; i < info->component_count; ++i) {
     const ComponentInfo& c = info->components[i];
-    if (!c.name || !*c.name || !c.create) throw PluginError(where + ": component " + std::to_string(i) + " is malformed");
+    if (!c.name || !*c.name || !c.create)
+      throw PluginError(where + ": component " + std::to_string(i) + " is malformed");
     if (c.kind < Kind::kEnvironment || c.kind > Kind::kMutator)
       throw PluginError(where + ": component '" + c.name + "' has an unknown kind");
     if (!own.insert(c.name).second)
@@ -148,7 +149,8 @@ const ComponentEntry& Registry::require(const std::string& name, Kind kind) cons
   if (e && e->info->kind == kind) return *e;
   std::string msg;
   if (e) {
-    msg = "'" + name + "' is a " + to_string(e->info->kind) + " (from " + e->plugin->path + "), not a " + to_string(kind);
+    msg =
+        "'" + name + "' is a " + to_string(e->info->kind) + " (from " + e->plugin->path + "), not a " + to_string(kind);
   } else {
     msg = "unknown " + std::string(to_string(kind)) + " '" + name + "'";
   }
@@ -169,8 +171,9 @@ const ComponentEntry& Registry::require(const std::string& name, Kind kind) cons
 Component* Registry::construct(const ComponentEntry& entry, const Config& config, const BuildContext& ctx) const {
   try {
     Component* c = entry.info->create(config, ctx);
-    if (!c) throw PluginError("component '" + std::string(entry.info->name) + "' from " + entry.plugin->path +
-                              ": factory returned nothing");
+    if (!c)
+      throw PluginError("component '" + std::string(entry.info->name) + "' from " + entry.plugin->path +
+                        ": factory returned nothing");
     return c;
   } catch (const ConfigError&) {
     throw;  // the caller adds the key's location
@@ -186,7 +189,9 @@ Component* Registry::construct(const ComponentEntry& entry, const Config& config
   }
 }
 
-void Registry::destroy(Component* c, const ComponentEntry&) noexcept { delete c; }
+void Registry::destroy(Component* c, const ComponentEntry&) noexcept {
+  delete c;
+}
 
 void Registry::throw_wrong_type(const ComponentEntry& entry) {
   throw PluginError("component '" + std::string(entry.info->name) + "' from " + entry.plugin->path +

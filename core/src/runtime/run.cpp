@@ -6,15 +6,15 @@
 #include <qd/state_io.hpp>
 #include <qd/version.hpp>
 
+#include <malloc.h>
+#include <unistd.h>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <ctime>
 #include <fstream>
-#include <malloc.h>
 #include <numeric>
 #include <sstream>
-#include <unistd.h>
 
 namespace qd::runtime {
 namespace fs = std::filesystem;
@@ -74,7 +74,7 @@ Run::Run(Experiment experiment, const Registry& registry, RunOptions options)
     : ex_(std::move(experiment)), opt_(std::move(options)) {
   const auto& s = ex_.settings;
   dir_ = opt_.directory.empty() ? fs::path(s.output_dir) / s.name / ("seed-" + std::to_string(s.seed))
-                               : fs::path(opt_.directory);
+                                : fs::path(opt_.directory);
 
   auto located = [](const ComponentConfig& cc, auto&& build) {
     try {
@@ -86,7 +86,8 @@ Run::Run(Experiment experiment, const Registry& registry, RunOptions options)
 
   BuildContext ctx;
   ctx.seed = s.seed;
-  env_ = located(ex_.environment, [&] { return registry.create<Environment>(*ex_.environment.entry, ex_.environment.config, ctx); });
+  env_ = located(ex_.environment,
+                 [&] { return registry.create<Environment>(*ex_.environment.entry, ex_.environment.config, ctx); });
   const EnvironmentInfo info = env_->info();
   if (info.observation_size <= 0 || info.action_size <= 0)
     throw PluginError("environment '" + ex_.environment.type + "' reports no observation or action size");
@@ -95,39 +96,47 @@ Run::Run(Experiment experiment, const Registry& registry, RunOptions options)
 
   if (!ex_.descriptor.entry) {
     if (info.default_descriptor.empty())
-      throw InputError("environment '" + ex_.environment.type + "' has no default descriptor; add [descriptor] type = ...");
+      throw InputError("environment '" + ex_.environment.type +
+                       "' has no default descriptor; add [descriptor] type = ...");
     resolve_default_component(ex_, ex_.descriptor, registry.require(info.default_descriptor, Kind::kDescriptor));
   }
-  desc_ = located(ex_.descriptor, [&] { return registry.create<Descriptor>(*ex_.descriptor.entry, ex_.descriptor.config, ctx); });
+  desc_ = located(ex_.descriptor,
+                  [&] { return registry.create<Descriptor>(*ex_.descriptor.entry, ex_.descriptor.config, ctx); });
   const GridSpec grid = desc_->grid();
-  if (grid.cells <= 0 || grid.shape.empty()) throw PluginError("descriptor '" + ex_.descriptor.type + "' declares an empty grid");
+  if (grid.cells <= 0 || grid.shape.empty())
+    throw PluginError("descriptor '" + ex_.descriptor.type + "' declares an empty grid");
 
-  repr_ = located(ex_.representation,
-                  [&] { return registry.create<Representation>(*ex_.representation.entry, ex_.representation.config, ctx); });
+  repr_ = located(ex_.representation, [&] {
+    return registry.create<Representation>(*ex_.representation.entry, ex_.representation.config, ctx);
+  });
   const int latent = repr_->latent_size();
   if (latent < 0 || static_cast<std::size_t>(latent) > shape_.param_count())
     throw ConfigError("latent", ex_.representation.config.where("latent") + ": [representation] latent size " +
                                     std::to_string(latent) + " is larger than the policy's parameter count " +
                                     std::to_string(shape_.param_count()));
   ctx.latent_size = latent;
-  mutator_ = located(ex_.mutator, [&] { return registry.create<Mutator>(*ex_.mutator.entry, ex_.mutator.config, ctx); });
-  initial_ = located(ex_.initial, [&] { return registry.create<Mutator>(*ex_.initial.entry, ex_.initial.config, ctx); });
+  mutator_ =
+      located(ex_.mutator, [&] { return registry.create<Mutator>(*ex_.mutator.entry, ex_.mutator.config, ctx); });
+  initial_ =
+      located(ex_.initial, [&] { return registry.create<Mutator>(*ex_.initial.entry, ex_.initial.config, ctx); });
   if (initial_->uses_parents())
     throw InputError("[initial] type = \"" + ex_.initial.type +
                      "\" needs parents, but loop 0 has none; use a sampler such as \"uniform\" or \"glorot\"");
   for (const auto* m : {&ex_.mutator, &ex_.initial}) {
     const Mutator& obj = m == &ex_.mutator ? *mutator_ : *initial_;
     if (obj.needs_latent() && latent == 0)
-      throw InputError("[" + m->table + "] type = \"" + m->type + "\" needs a representation with a latent space, but [representation] type = \"" +
+      throw InputError("[" + m->table + "] type = \"" + m->type +
+                       "\" needs a representation with a latent space, but [representation] type = \"" +
                        ex_.representation.type + "\" has none (use \"autoencoder\" or \"pca\")");
   }
   mutator_metric_names_ = mutator_->metric_names();
 
-  for (const ComponentConfig* cc : {&ex_.environment, &ex_.descriptor, &ex_.representation, &ex_.mutator, &ex_.initial}) {
+  for (const ComponentConfig* cc :
+       {&ex_.environment, &ex_.descriptor, &ex_.representation, &ex_.mutator, &ex_.initial}) {
     const PluginInfo& pi = *cc->entry->plugin->info;
     plugin_lines_.push_back("{ table = " + toml_string(cc->table) + ", component = " + toml_string(cc->type) +
-                            ", plugin = " + toml_string(pi.plugin_name) + ", version = " + toml_string(pi.plugin_version) +
-                            ", path = " + toml_string(cc->entry->plugin->path) + " }");
+                            ", plugin = " + toml_string(pi.plugin_name) + ", version = " +
+                            toml_string(pi.plugin_version) + ", path = " + toml_string(cc->entry->plugin->path) + " }");
   }
 
   const int workers = opt_.workers > 0 ? opt_.workers : (s.workers > 0 ? s.workers : hardware_workers());
@@ -149,7 +158,8 @@ void Run::create_directory() {
   set_status("running");
   write_file_atomic(dir_ / "config.toml", ex_.resolved_toml);
   write_provenance();
-  std::string header = "loop,iteration,evaluations,elites,coverage,mixing_ratio,added,replaced,invalid,wall_seconds,train_seconds";
+  std::string header =
+      "loop,iteration,evaluations,elites,coverage,mixing_ratio,added,replaced,invalid,wall_seconds,train_seconds";
   for (const auto& n : mutator_metric_names_) header += "," + n;
   write_file_atomic(dir_ / "metrics.csv", header + "\n");
   write_file_atomic(dir_ / "training.csv", "loop,epochs,train_loss,test_loss,stopped_early,seconds\n");
@@ -167,9 +177,13 @@ void Run::open_for_resume() {
   write_provenance();
 }
 
-double Run::wall_seconds() const { return wall_before_ + (now_seconds() - session_start_); }
+double Run::wall_seconds() const {
+  return wall_before_ + (now_seconds() - session_start_);
+}
 
-void Run::set_status(const std::string& status) const { write_file_atomic(dir_ / "status", status + "\n"); }
+void Run::set_status(const std::string& status) const {
+  write_file_atomic(dir_ / "status", status + "\n");
+}
 
 void Run::write_provenance() const {
   std::ostringstream o;
@@ -193,7 +207,8 @@ void Run::write_provenance() const {
   for (const auto& line : plugin_lines_) o << "  " << line << ",\n";
   o << "]\n";
   // One file per session, so the provenance of each part of a resumed run is kept.
-  const std::string name = next_loop_ == 0 ? "provenance.toml" : "provenance-resume-loop-" + std::to_string(next_loop_) + ".toml";
+  const std::string name =
+      next_loop_ == 0 ? "provenance.toml" : "provenance-resume-loop-" + std::to_string(next_loop_) + ".toml";
   write_file_atomic(dir_ / name, o.str());
 }
 
@@ -205,9 +220,9 @@ void Run::report(int loop, int iteration, bool loop_finished, const std::string&
   p.loops = s.loops;
   p.iteration = iteration;
   p.evaluations = evaluations_;
-  p.total_evaluations = static_cast<std::uint64_t>(s.initial_samples) +
-                        static_cast<std::uint64_t>(s.loops - 1) * static_cast<std::uint64_t>(s.iterations) *
-                            static_cast<std::uint64_t>(s.batch);
+  p.total_evaluations = static_cast<std::uint64_t>(s.initial_samples) + static_cast<std::uint64_t>(s.loops - 1) *
+                                                                            static_cast<std::uint64_t>(s.iterations) *
+                                                                            static_cast<std::uint64_t>(s.batch);
   p.elites = archive_->size();
   p.coverage = archive_->coverage();
   p.wall_seconds = now_seconds() - session_start_;
@@ -276,8 +291,9 @@ void Run::loop_zero() {
       ++invalid;
       continue;
     }
-    const auto r = archive_->offer(ev.cells[i], off.theta.row(static_cast<Eigen::Index>(i)).data(),
-                                   ev.descriptors.row(static_cast<Eigen::Index>(i)).data(), ev.traces[i].fitness, 0.0, false);
+    const auto r =
+        archive_->offer(ev.cells[i], off.theta.row(static_cast<Eigen::Index>(i)).data(),
+                        ev.descriptors.row(static_cast<Eigen::Index>(i)).data(), ev.traces[i].fitness, 0.0, false);
     if (r == Insertion::kAdded) ++added;
   }
   std::vector<std::size_t> slots(archive_->size());
@@ -326,7 +342,8 @@ void Run::map_elites_loop(int loop) {
     fill_reconstruction(off, recn);
 
     for (std::size_t i = 0; i < batch; ++i)
-      seeds[i] = Rng::derive_seed(s.seed, Stream::kEpisode, static_cast<std::uint64_t>(loop), static_cast<std::uint64_t>(it), i);
+      seeds[i] = Rng::derive_seed(s.seed, Stream::kEpisode, static_cast<std::uint64_t>(loop),
+                                  static_cast<std::uint64_t>(it), i);
     evaluator_->evaluate(off.theta, seeds, ev);
     evaluations_ += batch;
     session_evaluations_ += batch;
@@ -385,7 +402,8 @@ void Run::fill_reconstruction(Offspring& off, Vector& recn) const {
     if (!off.has_latent[i]) missing.push_back(static_cast<Eigen::Index>(i));
   if (!missing.empty()) {
     Matrix theta(static_cast<Eigen::Index>(missing.size()), off.theta.cols());
-    for (std::size_t k = 0; k < missing.size(); ++k) theta.row(static_cast<Eigen::Index>(k)) = off.theta.row(missing[k]);
+    for (std::size_t k = 0; k < missing.size(); ++k)
+      theta.row(static_cast<Eigen::Index>(k)) = off.theta.row(missing[k]);
     Matrix z;
     repr_->encode(theta, z);
     for (std::size_t k = 0; k < missing.size(); ++k) off.latent.row(missing[k]) = z.row(static_cast<Eigen::Index>(k));
@@ -559,7 +577,8 @@ void Run::write_checkpoint(int loop) {
   // Sizes of the append-only logs, so a resume can cut away rows written after this point.
   std::vector<std::pair<std::string, std::uint64_t>> logs;
   for (const auto& e : fs::directory_iterator(dir_))
-    if (e.is_regular_file() && is_appended_log(e.path())) logs.emplace_back(e.path().filename().string(), e.file_size());
+    if (e.is_regular_file() && is_appended_log(e.path()))
+      logs.emplace_back(e.path().filename().string(), e.file_size());
   std::sort(logs.begin(), logs.end());
   state::write<std::uint32_t>(o, static_cast<std::uint32_t>(logs.size()));
   for (const auto& [name, size] : logs) {

@@ -27,7 +27,7 @@ struct Progress {
   std::uint64_t total_evaluations = 0;
   std::size_t elites = 0;
   double coverage = 0.0;
-  double wall_seconds = 0.0;       // this session
+  double wall_seconds = 0.0;  // this session
   std::uint64_t session_evaluations = 0;
   bool loop_finished = false;
   std::string note;  // e.g. "training autoencoder"
@@ -39,9 +39,9 @@ struct Progress {
 void tune_allocator();
 
 struct RunOptions {
-  int workers = 0;            // 0 = from the experiment (then all cores)
-  int stop_after_loop = -1;   // stop cleanly after this loop's checkpoint (-1 = run to the end)
-  std::string directory;      // run directory; empty = <output>/<name>/seed-<seed>
+  int workers = 0;           // 0 = from the experiment (then all cores)
+  int stop_after_loop = -1;  // stop cleanly after this loop's checkpoint (-1 = run to the end)
+  std::string directory;     // run directory; empty = <output>/<name>/seed-<seed>
   std::string command_line;
   std::function<void(const Progress&)> on_progress;
 };
@@ -118,7 +118,7 @@ class Run {
   int next_loop_ = 0;
   std::uint64_t evaluations_ = 0;
   std::uint64_t session_evaluations_ = 0;
-  double wall_before_ = 0.0;   // wall seconds of earlier sessions (resume)
+  double wall_before_ = 0.0;  // wall seconds of earlier sessions (resume)
   double train_seconds_ = 0.0;
   double session_start_ = 0.0;
 };

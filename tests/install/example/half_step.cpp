@@ -2,7 +2,8 @@
 #include <qd/plugin.hpp>
 
 namespace {
-constexpr qd::ParamSpec kParams[] = {qd::param_float("step", "0.5", 0.0, 1.0, "fraction of the way to the random point")};
+constexpr qd::ParamSpec kParams[] = {
+    qd::param_float("step", "0.5", 0.0, 1.0, "fraction of the way to the random point")};
 
 class HalfStep final : public qd::Mutator {
  public:
