@@ -2,7 +2,7 @@
 // description, insertion, metrics, checkpoints) divided by evaluations/s of a bare loop that calls
 // the same environment and policy directly. Same binary, same process, one worker.
 //
-//   qd_framework_overhead EXPERIMENT.toml [--workers N] [--run-first] [--set k=v]...
+//   qd_framework_overhead EXPERIMENT.toml [--workers N] [--repeat K] [--set k=v]...
 // The bare loop is single-threaded; the qdrun run uses N workers (default 1). Prints both rates and
 // their ratio (with N > 1 the ratio is the parallel speed-up over the bare loop).
 #include "runtime/experiment.hpp"
@@ -11,8 +11,10 @@
 
 #include <qd/policy.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -25,11 +27,18 @@ namespace {
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
+
+// CPU seconds of the whole process (all threads: the run's checkpoint writer counts too).
+double process_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
 }  // namespace
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: %s EXPERIMENT.toml [--set k=v]...\n", argv[0]);
+    std::fprintf(stderr, "usage: %s EXPERIMENT.toml [--workers N] [--repeat K] [--set k=v]...\n", argv[0]);
     return 2;
   }
   tune_allocator();  // as qdrun does; it applies to the bare loop and the run alike
@@ -37,12 +46,15 @@ int main(int argc, char** argv) {
     const fs::path out = fs::temp_directory_path() / "qd_framework_overhead";
     fs::remove_all(out);
     Document doc = Document::read(argv[1]);
-    int workers = 1;
+    int workers = 1, repeat = 3;
     for (int i = 2; i + 1 < argc; ++i) {
-      if (std::string(argv[i]) == "--set")
+      const std::string a = argv[i];
+      if (a == "--set")
         doc.apply_override(argv[++i]);
-      else if (std::string(argv[i]) == "--workers")
+      else if (a == "--workers")
         workers = std::stoi(argv[++i]);
+      else if (a == "--repeat")
+        repeat = std::max(1, std::stoi(argv[++i]));
     }
     doc.apply_override("output.dir=\"" + out.string() + "\"");
     doc.apply_override("evaluation.workers=" + std::to_string(workers));
@@ -51,70 +63,92 @@ int main(int argc, char** argv) {
     reg.add_search_dir(build_tree_plugin_dir());
     reg.discover();
 
-    Experiment ex = resolve(doc, reg);
+    const Experiment ex = resolve(doc, reg);
     const auto total = static_cast<std::uint64_t>(ex.settings.initial_samples) +
                        static_cast<std::uint64_t>(ex.settings.loops - 1) * ex.settings.iterations * ex.settings.batch;
-    Run run(ex, reg, RunOptions{});
-    run.create_directory();
 
-    // Bare loop first: the same environment object and policy shape, one rollout call per batch.
     // When the experiment samples uniformly (ps-uniform), the bare loop evaluates exactly the
     // policies the run will evaluate (same random streams), so episode lengths match too;
     // otherwise it evaluates fresh U(-1, 1) policies.
-    const PolicyShape& shape = run.policy_shape();
     const bool same_policies = ex.mutator.type == "uniform" && ex.initial.type == "uniform" &&
                                ex.mutator.config.get_float("low") == -1.0 && ex.mutator.config.get_float("high") == 1.0;
-    const auto P = static_cast<Eigen::Index>(shape.param_count());
-    std::vector<std::pair<Rng, std::size_t>> batches;  // (stream, batch size) in run order
-    if (same_policies) {
-      batches.emplace_back(Rng(ex.settings.seed, Stream::kInitial, 0),
-                           static_cast<std::size_t>(ex.settings.initial_samples));
-      for (int loop = 1; loop < ex.settings.loops; ++loop)
-        for (int it = 0; it < ex.settings.iterations; ++it)
-          batches.emplace_back(Rng(ex.settings.seed, Stream::kMutation, static_cast<std::uint64_t>(loop),
-                                   static_cast<std::uint64_t>(it)),
-                               static_cast<std::size_t>(ex.settings.batch));
-    } else {
-      for (std::uint64_t done = 0, k = 0; done < total; done += static_cast<std::uint64_t>(ex.settings.batch), ++k)
-        batches.emplace_back(Rng(1, Stream::kPlugin, k), static_cast<std::size_t>(ex.settings.batch));
-    }
-    std::uint64_t bare_evals = 0, bare_steps = 0;
-    Matrix params;
-    std::vector<Trace> traces;
-    std::vector<std::uint64_t> seeds;
-    bool run_first = false;
-    for (int i = 2; i < argc; ++i)
-      if (std::string(argv[i]) == "--run-first") run_first = true;
-    double run_s = 0;
-    auto timed_run = [&] {
+    auto batches = [&] {
+      std::vector<std::pair<Rng, std::size_t>> b;  // (stream, batch size) in run order
+      if (same_policies) {
+        b.emplace_back(Rng(ex.settings.seed, Stream::kInitial, 0),
+                       static_cast<std::size_t>(ex.settings.initial_samples));
+        for (int loop = 1; loop < ex.settings.loops; ++loop)
+          for (int it = 0; it < ex.settings.iterations; ++it)
+            b.emplace_back(Rng(ex.settings.seed, Stream::kMutation, static_cast<std::uint64_t>(loop),
+                               static_cast<std::uint64_t>(it)),
+                           static_cast<std::size_t>(ex.settings.batch));
+      } else {
+        for (std::uint64_t done = 0, k = 0; done < total; done += static_cast<std::uint64_t>(ex.settings.batch), ++k)
+          b.emplace_back(Rng(1, Stream::kPlugin, k), static_cast<std::size_t>(ex.settings.batch));
+      }
+      return b;
+    };
+
+    // Bare loop: the run's own environment object and policy shape, one rollout call per batch,
+    // no evaluator, descriptor, archive or files.
+    std::uint64_t bare_steps = 0;
+    auto bare_loop = [&](const Run& run) {
+      Matrix params;
+      std::vector<Trace> traces;
+      std::vector<std::uint64_t> seeds;
+      const PolicyShape& shape = run.policy_shape();
+      const auto P = static_cast<Eigen::Index>(shape.param_count());
+      bare_steps = 0;
+      const double c0 = process_cpu_seconds();
+      const auto t0 = std::chrono::steady_clock::now();
+      for (auto& [rng, n] : batches()) {
+        params.resize(static_cast<Eigen::Index>(n), P);
+        traces.resize(n);
+        seeds.assign(n, 0);
+        rng.fill_uniform(params.data(), static_cast<std::size_t>(params.size()), -1.0, 1.0);
+        RolloutBatch b{&shape, &params, seeds.data(), 0, n};
+        run.environment().rollout(b, traces.data());
+        for (const auto& t : traces) bare_steps += static_cast<std::uint64_t>(t.steps);
+      }
+      return std::pair{seconds_since(t0), process_cpu_seconds() - c0};
+    };
+
+    // Alternating repetitions (bare, run, bare, run, ...): machine noise only ever adds time, so
+    // the ratio of the fastest of each side is the least disturbed estimate; every repetition is
+    // printed too.
+    double best_bare = 1e300, best_run = 1e300, best_bare_cpu = 1e300, best_run_cpu = 1e300;
+    std::size_t params_count = 0;
+    for (int r = 0; r < repeat; ++r) {
+      const fs::path dir = out / ("rep-" + std::to_string(r));
+      RunOptions opt;
+      opt.directory = dir.string();
+      Run run(ex, reg, std::move(opt));
+      params_count = run.policy_shape().param_count();
+      run.create_directory();
+      const auto [bare_s, bare_cpu] = bare_loop(run);
+      const double c_run = process_cpu_seconds();
       const auto t_run = std::chrono::steady_clock::now();
       run.run();
-      run_s = seconds_since(t_run);
-    };
-    if (run_first) timed_run();
-    const auto t_bare = std::chrono::steady_clock::now();
-    for (auto& [rng, n] : batches) {
-      params.resize(static_cast<Eigen::Index>(n), P);
-      traces.resize(n);
-      seeds.assign(n, 0);
-      rng.fill_uniform(params.data(), static_cast<std::size_t>(params.size()), -1.0, 1.0);
-      RolloutBatch b{&shape, &params, seeds.data(), 0, n};
-      run.environment().rollout(b, traces.data());
-      bare_evals += n;
-      for (const auto& t : traces) bare_steps += static_cast<std::uint64_t>(t.steps);
+      const double run_s = seconds_since(t_run);
+      const double run_cpu = process_cpu_seconds() - c_run;
+      best_bare = std::min(best_bare, bare_s);
+      best_run = std::min(best_run, run_s);
+      best_bare_cpu = std::min(best_bare_cpu, bare_cpu);
+      best_run_cpu = std::min(best_run_cpu, run_cpu);
+      std::printf("  repetition %d: bare %.3f s (cpu %.3f), qdrun %.3f s (cpu %.3f), ratio %.4f (cpu %.4f)\n", r + 1,
+                  bare_s, bare_cpu, run_s, run_cpu, bare_s / run_s, bare_cpu / run_cpu);
+      std::fflush(stdout);
+      fs::remove_all(dir);
     }
-    const double bare_s = seconds_since(t_bare);
-
-    if (!run_first) timed_run();
-
-    const double bare_rate = static_cast<double>(bare_evals) / bare_s;
-    const double run_rate = static_cast<double>(total) / run_s;
+    const double n = static_cast<double>(total);
     std::printf("experiment=%s params=%zu evaluations=%llu workers=%d same_policies=%d bare_us_per_step=%.3f\n",
-                argv[1], shape.param_count(), static_cast<unsigned long long>(total), workers, same_policies ? 1 : 0,
-                1e6 * bare_s / static_cast<double>(bare_steps));
+                argv[1], params_count, static_cast<unsigned long long>(total), workers, same_policies ? 1 : 0,
+                1e6 * best_bare / static_cast<double>(bare_steps));
     std::printf(
-        "bare_loop_evals_per_s=%.1f qdrun_evals_per_s=%.1f ratio=%.4f bare_us_per_eval=%.2f qdrun_us_per_eval=%.2f\n",
-        bare_rate, run_rate, run_rate / bare_rate, 1e6 / bare_rate, 1e6 / run_rate);
+        "bare_loop_evals_per_s=%.1f qdrun_evals_per_s=%.1f ratio=%.4f bare_us_per_eval=%.2f qdrun_us_per_eval=%.2f "
+        "cpu_ratio=%.4f (best of %d alternating repetitions)\n",
+        n / best_bare, n / best_run, best_bare / best_run, 1e6 * best_bare / n, 1e6 * best_run / n,
+        best_bare_cpu / best_run_cpu, repeat);
     fs::remove_all(out);
     return 0;
   } catch (const std::exception& e) {

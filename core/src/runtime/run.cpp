@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <ctime>
 #include <fstream>
 #include <numeric>
@@ -21,8 +22,16 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr char kCheckpointMagic[8] = {'Q', 'D', 'C', 'K', 'P', 'T', '0', '1'};
+constexpr char kCheckpointMagic[8] = {'Q', 'D', 'C', 'K', 'P', 'T', '0', '2'};
 constexpr const char* kCheckpointFile = "checkpoint.bin";
+// Checkpoint format 02: the dataset lives in an append-only file beside the checkpoint.
+constexpr char kDatasetMagic[8] = {'Q', 'D', 'D', 'S', 'E', 'T', '0', '1'};
+constexpr const char* kDatasetFile = "dataset.bin";
+
+// One dataset row in dataset.bin: cell (int64), loop (int64), then P doubles.
+std::size_t dataset_row_bytes(std::size_t P) {
+  return 2 * sizeof(std::int64_t) + P * sizeof(double);
+}
 
 double now_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -253,11 +262,13 @@ bool Run::run() {
     write_checkpoint(loop);
     report(loop, ex_.settings.iterations - 1, true);
     if (opt_.stop_after_loop >= 0 && loop >= opt_.stop_after_loop && next_loop_ < loops) {
+      finish_checkpoints();
       set_status("stopped after loop " + std::to_string(loop) + " (resume with --resume)");
       return false;
     }
   }
   write_snapshot(dir_ / "archive.csv");
+  finish_checkpoints();
   set_status("complete");
   return true;
 }
@@ -561,43 +572,99 @@ Trace Run::replay(std::int64_t cell, const fs::path& svg) const {
 }
 
 void Run::write_checkpoint(int loop) {
-  // Streamed straight to a temporary file (the state can be hundreds of MB), then committed.
-  const fs::path tmp = dir_ / (std::string(kCheckpointFile) + ".tmp");
-  std::vector<char> buffer(std::size_t{1} << 20);
-  std::ofstream o;
-  o.rdbuf()->pubsetbuf(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-  o.open(tmp, std::ios::binary | std::ios::trunc);
-  if (!o) throw Error("cannot create " + tmp.string());
-  o.write(kCheckpointMagic, sizeof(kCheckpointMagic));
-  state::write_string(o, ex_.resolved_toml);
-  state::write<std::int32_t>(o, loop);
-  state::write<std::uint64_t>(o, evaluations_);
-  state::write<double>(o, wall_seconds());
-  state::write<double>(o, train_seconds_);
-  // Sizes of the append-only logs, so a resume can cut away rows written after this point.
-  std::vector<std::pair<std::string, std::uint64_t>> logs;
-  for (const auto& e : fs::directory_iterator(dir_))
-    if (e.is_regular_file() && is_appended_log(e.path()))
-      logs.emplace_back(e.path().filename().string(), e.file_size());
-  std::sort(logs.begin(), logs.end());
-  state::write<std::uint32_t>(o, static_cast<std::uint32_t>(logs.size()));
-  for (const auto& [name, size] : logs) {
-    state::write_string(o, name);
-    state::write<std::uint64_t>(o, size);
+  // Serialised here (a memory copy of the state at this loop boundary), written by the background
+  // writer while the next loop runs. Waits for the previous checkpoint first.
+  if (!checkpoint_writer_) checkpoint_writer_ = std::make_unique<CheckpointWriter>();
+  checkpoint_writer_->wait();
+  CheckpointWriter::Job& job = checkpoint_job_;
+  job.checkpoint = dir_ / kCheckpointFile;
+  job.dataset = dir_ / kDatasetFile;
+  job.state.clear();
+  job.dataset_rows.clear();
+  {
+    StringAppender sink(job.state);
+    std::ostream o(&sink);
+    o.write(kCheckpointMagic, sizeof(kCheckpointMagic));
+    state::write_string(o, ex_.resolved_toml);
+    state::write<std::int32_t>(o, loop);
+    state::write<std::uint64_t>(o, evaluations_);
+    state::write<double>(o, wall_seconds());
+    state::write<double>(o, train_seconds_);
+    // Sizes of the append-only logs, so a resume can cut away rows written after this point.
+    std::vector<std::pair<std::string, std::uint64_t>> logs;
+    for (const auto& e : fs::directory_iterator(dir_))
+      if (e.is_regular_file() && is_appended_log(e.path()))
+        logs.emplace_back(e.path().filename().string(), e.file_size());
+    std::sort(logs.begin(), logs.end());
+    state::write<std::uint32_t>(o, static_cast<std::uint32_t>(logs.size()));
+    for (const auto& [name, size] : logs) {
+      state::write_string(o, name);
+      state::write<std::uint64_t>(o, size);
+    }
+    archive_->save(o);
+    state::write<std::uint64_t>(o, dataset_->size());
+    auto blob = [&](auto& component) {
+      std::string bytes;
+      StringAppender b(bytes);
+      std::ostream bo(&b);
+      component.save(bo);
+      state::write_string(o, bytes);
+    };
+    blob(*repr_);
+    blob(*mutator_);
+    blob(*initial_);
+    if (!o) throw Error("cannot serialise the checkpoint");
   }
-  archive_->save(o);
-  dataset_->save(o);
-  auto blob = [&](auto& component) {
-    std::ostringstream b(std::ios::binary);
-    component.save(b);
-    state::write_string(o, b.str());
-  };
-  blob(*repr_);
-  blob(*mutator_);
-  blob(*initial_);
-  o.close();
-  if (!o) throw Error("cannot write " + tmp.string());
-  commit_file(tmp, dir_ / kCheckpointFile);
+  // The dataset only grows, so each checkpoint appends the rows that are new since the last one.
+  const std::size_t P = shape_.param_count();
+  const std::size_t row_bytes = dataset_row_bytes(P);
+  if (dataset_bytes_saved_ == 0) {
+    job.dataset_rows.append(kDatasetMagic, sizeof(kDatasetMagic));
+    const std::uint64_t p64 = P;
+    job.dataset_rows.append(reinterpret_cast<const char*>(&p64), sizeof(p64));
+  }
+  job.dataset_offset = dataset_bytes_saved_;
+  job.dataset_rows.reserve(job.dataset_rows.size() + (dataset_->size() - dataset_rows_saved_) * row_bytes);
+  for (std::size_t k = dataset_rows_saved_; k < dataset_->size(); ++k) {
+    const std::int64_t cell = dataset_->cells()[k];
+    const std::int64_t row_loop = dataset_->loops()[k];
+    job.dataset_rows.append(reinterpret_cast<const char*>(&cell), sizeof(cell));
+    job.dataset_rows.append(reinterpret_cast<const char*>(&row_loop), sizeof(row_loop));
+    job.dataset_rows.append(reinterpret_cast<const char*>(dataset_->params().row(static_cast<Eigen::Index>(k)).data()),
+                            P * sizeof(double));
+  }
+  dataset_bytes_saved_ = job.dataset_offset + job.dataset_rows.size();
+  dataset_rows_saved_ = dataset_->size();
+  checkpoint_writer_->submit(job);
+}
+
+void Run::finish_checkpoints() {
+  if (checkpoint_writer_) checkpoint_writer_->wait();
+}
+
+void Run::load_dataset(std::uint64_t rows) {
+  const fs::path path = dir_ / kDatasetFile;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw StateError(path.string() + " is missing");
+  char magic[sizeof(kDatasetMagic)];
+  std::uint64_t P = 0;
+  if (!in.read(magic, sizeof(magic)) || !std::equal(magic, magic + sizeof(magic), kDatasetMagic) ||
+      !in.read(reinterpret_cast<char*>(&P), sizeof(P)))
+    throw StateError(path.string() + " is not a qdrun dataset file");
+  if (P != shape_.param_count()) throw StateError(path.string() + " has another parameter count than this experiment");
+  *dataset_ = Dataset(shape_.param_count());
+  std::vector<double> theta(P);
+  for (std::uint64_t k = 0; k < rows; ++k) {
+    std::int64_t cell = 0, loop = 0;
+    if (!in.read(reinterpret_cast<char*>(&cell), sizeof(cell)) ||
+        !in.read(reinterpret_cast<char*>(&loop), sizeof(loop)) ||
+        !in.read(reinterpret_cast<char*>(theta.data()), static_cast<std::streamsize>(P * sizeof(double))))
+      throw StateError(path.string() + " holds fewer rows than the checkpoint counts");
+    if (dataset_->contains_cell(cell)) throw StateError(path.string() + " holds a cell twice");
+    dataset_->add(theta.data(), cell, static_cast<int>(loop));
+  }
+  dataset_rows_saved_ = dataset_->size();
+  dataset_bytes_saved_ = sizeof(kDatasetMagic) + sizeof(P) + rows * dataset_row_bytes(P);
 }
 
 void Run::load_checkpoint() {
@@ -622,7 +689,8 @@ void Run::load_checkpoint() {
       logs.emplace_back(std::move(name), state::read<std::uint64_t>(i));
     }
     archive_->load(i);
-    dataset_->load(i);
+    const auto dataset_rows = state::read<std::uint64_t>(i);
+    load_dataset(dataset_rows);
     auto blob = [&](auto& component, const char* what) {
       std::istringstream b(state::read_string(i), std::ios::binary);
       try {

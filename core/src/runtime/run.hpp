@@ -2,6 +2,7 @@
 // spec section 3 with checkpoints at every loop boundary, and resumes from them bit-identically.
 #pragma once
 
+#include "runtime/checkpoint_writer.hpp"
 #include "runtime/evaluator.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
@@ -85,6 +86,8 @@ class Run {
                          std::size_t invalid);
   void write_checkpoint(int loop);
   void load_checkpoint();
+  void load_dataset(std::uint64_t rows);
+  void finish_checkpoints();  // waits for the checkpoint in flight; rethrows its write error
   void write_snapshot(const std::filesystem::path& path) const;
   void write_provenance() const;
   void set_status(const std::string& status) const;
@@ -114,6 +117,13 @@ class Run {
   Evaluations evaluations_buffer_;
   std::vector<std::uint64_t> seeds_;
   std::vector<Insertion> outcomes_;
+
+  // Checkpoints: written by a background thread; the dataset goes to an append-only file, of which
+  // the last submitted checkpoint covers the first dataset_rows_saved_ rows (dataset_bytes_saved_ bytes).
+  CheckpointWriter::Job checkpoint_job_;
+  std::size_t dataset_rows_saved_ = 0;
+  std::uint64_t dataset_bytes_saved_ = 0;
+  std::unique_ptr<CheckpointWriter> checkpoint_writer_;
 
   int next_loop_ = 0;
   std::uint64_t evaluations_ = 0;

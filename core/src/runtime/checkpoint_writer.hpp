@@ -1,0 +1,75 @@
+// Writes checkpoints on a background thread, so the loop does not wait for the disk.
+//
+// The loop serialises its state into a buffer at a loop boundary (a memory copy) and hands it over;
+// this thread appends the dataset rows that are new since the last checkpoint to `dataset.bin`,
+// then writes, fsyncs and renames `checkpoint.bin`. At most one checkpoint is in flight: the next
+// submit() (and wait()) first waits for the previous one. A checkpoint that was not committed when
+// the process died is simply absent, and resume continues from the one before, which is equally
+// bit-identical (the logs are cut back to the sizes that checkpoint recorded).
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <exception>
+#include <filesystem>
+#include <mutex>
+#include <streambuf>
+#include <string>
+#include <thread>
+
+namespace qd::runtime {
+
+// A stream buffer that appends to a std::string, so state can be serialised with the components'
+// save(std::ostream&) into a buffer whose capacity is kept from one checkpoint to the next.
+class StringAppender : public std::streambuf {
+ public:
+  explicit StringAppender(std::string& out) : out_(out) {}
+
+ protected:
+  std::streamsize xsputn(const char* s, std::streamsize n) override {
+    out_.append(s, static_cast<std::size_t>(n));
+    return n;
+  }
+  int_type overflow(int_type c) override {
+    if (!traits_type::eq_int_type(c, traits_type::eof())) out_.push_back(traits_type::to_char_type(c));
+    return traits_type::not_eof(c);
+  }
+
+ private:
+  std::string& out_;
+};
+
+class CheckpointWriter {
+ public:
+  struct Job {
+    std::filesystem::path checkpoint;  // final path; written via "<path>.tmp"
+    std::string state;                 // checkpoint bytes
+    std::filesystem::path dataset;     // append-only dataset rows file
+    std::uint64_t dataset_offset = 0;  // its committed size before this job's rows
+    std::string dataset_rows;          // bytes to write at dataset_offset
+  };
+
+  CheckpointWriter();
+  ~CheckpointWriter();  // waits for the checkpoint in flight (errors are dropped: nothing to report to)
+  CheckpointWriter(const CheckpointWriter&) = delete;
+  CheckpointWriter& operator=(const CheckpointWriter&) = delete;
+
+  // Waits for the previous job, rethrows its error if it failed, then queues this one. The
+  // buffers in `job` are swapped out, so the caller can reuse their capacity next time.
+  void submit(Job& job);
+  // Waits until nothing is in flight; rethrows the error of a failed write.
+  void wait();
+
+ private:
+  void work();
+  static void write(const Job& job);
+
+  std::mutex mutex_;
+  std::condition_variable wake_, idle_;
+  Job job_;
+  bool pending_ = false, stop_ = false;
+  std::exception_ptr error_;
+  std::thread thread_;
+};
+
+}  // namespace qd::runtime
