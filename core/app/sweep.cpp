@@ -256,6 +256,30 @@ pid_t start_child(const std::string& exe, const std::vector<std::string>& args, 
   return pid;
 }
 
+// Files that other files of the sweep include (`include = "base.toml"` or a list): shared settings,
+// not experiments, so `qdrun experiments/striker/*.toml` runs the algorithm files only.
+std::set<std::string> included_files(const std::vector<std::string>& files) {
+  std::set<std::string> out;
+  for (const auto& f : files) {
+    std::ifstream in(f);
+    std::string line;
+    while (std::getline(in, line)) {
+      const std::size_t start = line.find_first_not_of(" \t");
+      if (start == std::string::npos || line.compare(start, 7, "include") != 0) continue;
+      const std::size_t eq = line.find('=', start);
+      if (eq == std::string::npos || line.find_first_not_of(" \t", start + 7) != eq) continue;
+      for (std::size_t q = line.find('"', eq); q != std::string::npos; q = line.find('"', q)) {
+        const std::size_t e = line.find('"', q + 1);
+        if (e == std::string::npos) break;
+        std::error_code ec;
+        out.insert(fs::weakly_canonical(fs::path(f).parent_path() / line.substr(q + 1, e - q - 1), ec).string());
+        q = e + 1;
+      }
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 std::vector<std::uint64_t> parse_seed_list(const std::string& text) {
@@ -298,7 +322,13 @@ int run_sweep(const SweepOptions& o,
   RegistryCache regs(setup_registry);
   std::vector<PlannedRun> runs;
   std::map<std::string, std::string> owner;  // run directory -> label of the file that made it
+  const std::set<std::string> included = included_files(o.experiments);
   for (const auto& file : o.experiments) {
+    std::error_code ec;
+    if (included.count(fs::weakly_canonical(file, ec).string())) {
+      std::printf("sweep: %s is included by the other files, not an experiment: skipped\n", file.c_str());
+      continue;
+    }
     std::vector<const std::uint64_t*> seeds;
     for (const auto& s : o.seeds) seeds.push_back(&s);
     if (seeds.empty()) seeds.push_back(nullptr);

@@ -3,7 +3,7 @@
 # larger loops extend finished runs, and a failing run makes the sweep exit non-zero naming it.
 source "$(dirname "$0")/lib.sh"
 qdrun=$1 smoke=$2 out=$3
-rm -rf "$out"
+rm -rf "$out" "$out-single" "$out-dry"
 log=$out.log
 "$qdrun" "$smoke/iso.toml" "$smoke/uniform.toml" "$smoke/poms.toml" --seeds 1,2 -o "$out" \
   --evaluations 300 --set-optional representation.max_epochs=7 > "$log"
@@ -31,4 +31,10 @@ cat "$log"
 [ $rc -eq 1 ] || { echo "sweep exit code $rc, expected 1"; exit 1; }
 grep -q "FAILED smoke-poms/seed-1" "$log"
 grep -q "failed runs: smoke-poms/seed-1" "$log"
+# experiments/striker/*.toml: base.toml is included by the others and skipped; --dry-run starts nothing.
+"$qdrun" "$smoke/../striker/"*.toml --seeds 1,2 -o "$out-dry" --dry-run > "$log"
+grep -q "base.toml is included by the other files" "$log"
+grep -q "^sweep: 16 runs (16 to do, 0 complete)" "$log"
+[ "$(grep -c " plan   striker-" "$log")" -eq 16 ]
+[ ! -e "$out-dry" ] || { echo "--dry-run created $out-dry"; exit 1; }
 echo "sweep ok"
