@@ -4,7 +4,7 @@
 #   scripts/test.sh --sanitize   ASan + UBSan build in build-asan/
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/install-deps.sh
+scripts/install-deps.sh --plots  # matplotlib for the qdplot tests
 dir=build-test
 flags=(-DCMAKE_BUILD_TYPE=Release)
 if [ "${1:-}" = "--sanitize" ]; then

@@ -6,6 +6,7 @@
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
 #include "runtime/run.hpp"
+#include "sweep.hpp"
 
 #include <qd/errors.hpp>
 #include <qd/version.hpp>
@@ -37,6 +38,12 @@ struct Cli {
   int workers = 0;
   int stop_after_loop = -1;
   bool quiet = false, list = false, version = false;
+  // Sweeps (several files and/or --seeds), replay of all elites, latent codes.
+  std::string seeds, traces, latents;
+  std::vector<std::string> optional_sets;
+  long long evaluations = -1;
+  int jobs = 0;
+  bool all = false, dry_run = false;
 };
 
 std::vector<std::string> split_path_list(const char* text) {
@@ -169,7 +176,10 @@ int run_one(const Cli& cli, const std::string& command_line) {
   return kExitOk;
 }
 
+int replay_all(const Cli& cli);
+
 int replay(const Cli& cli) {
+  if (cli.all) return replay_all(cli);
   if (cli.cell < 0) throw InputError("--replay needs --cell N (an index from archive.csv)");
   const fs::path dir = cli.replay;
   if (!fs::exists(dir / "config.toml")) throw InputError(cli.replay + ": not a run directory (no config.toml)");
@@ -189,6 +199,67 @@ int replay(const Cli& cli) {
               t.steps, static_cast<long long>(cell),
               cell == cli.cell ? " (as stored)" : " (differs from the stored cell)", svg.c_str());
   return kExitOk;
+}
+
+// qdrun --replay RUN_DIR --all [--traces FILE.csv]: every elite's trajectory, for qdplot.
+int replay_all(const Cli& cli) {
+  if (cli.cell >= 0 || !cli.svg.empty()) throw InputError("--replay --all takes no --cell or --svg (see --traces)");
+  const fs::path dir = cli.replay;
+  if (!fs::exists(dir / "config.toml")) throw InputError(cli.replay + ": not a run directory (no config.toml)");
+  Document doc = Document::read(dir / "config.toml");
+  Registry reg;
+  setup_registry(reg, cli, doc.plugin_paths());
+  RunOptions opt;
+  opt.directory = cli.replay;
+  opt.workers = cli.workers;
+  Run run(resolve(doc, reg), reg, std::move(opt));
+  const fs::path csv = cli.traces.empty() ? dir / "traces.csv" : fs::path(cli.traces);
+  const Run::ReplayAllResult r = run.replay_all(csv);
+  std::printf("replayed %zu elites, %zu land in their stored cell\nwrote %s\n", r.elites, r.as_stored, csv.c_str());
+  return kExitOk;
+}
+
+// qdrun --latents RUN_DIR [--output FILE.csv]: the dataset's latent codes under the checkpoint's
+// representation, with their cells (for qdplot's latent-space figure). Reads the run, writes nothing in it
+// unless FILE is there.
+int latents(const Cli& cli) {
+  const fs::path dir = cli.latents;
+  if (!fs::exists(dir / "config.toml")) throw InputError(cli.latents + ": not a run directory (no config.toml)");
+  Document doc = Document::read(dir / "config.toml");
+  Registry reg;
+  setup_registry(reg, cli, doc.plugin_paths());
+  RunOptions opt;
+  opt.directory = cli.latents;
+  opt.workers = 1;
+  Run run(resolve(doc, reg), reg, std::move(opt));
+  run.open_for_inspection();
+  const fs::path csv = cli.output.empty() ? dir / "latents.csv" : fs::path(cli.output);
+  run.write_latents(csv);
+  std::printf("wrote the latent codes of %zu dataset entries to %s\n", run.dataset().size(), csv.c_str());
+  return kExitOk;
+}
+
+bool sweep_requested(const Cli& cli) {
+  return cli.experiments.size() > 1 || !cli.seeds.empty() || cli.jobs > 0 || cli.evaluations >= 0 ||
+         !cli.optional_sets.empty() || cli.dry_run;
+}
+
+int sweep(const Cli& cli) {
+  if (!cli.resume.empty() || cli.seed >= 0 || cli.stop_after_loop >= 0)
+    throw InputError("a sweep (several files, --seeds or --jobs) takes no --resume, --seed or --stop-after-loop");
+  app::SweepOptions o;
+  o.experiments = cli.experiments;
+  if (!cli.seeds.empty()) o.seeds = app::parse_seed_list(cli.seeds);
+  o.sets = cli.sets;
+  o.optional_sets = cli.optional_sets;
+  o.plugin_paths = cli.plugin_paths;
+  o.output = cli.output;
+  o.evaluations = cli.evaluations;
+  o.jobs = cli.jobs;
+  o.workers = cli.workers;
+  o.dry_run = cli.dry_run;
+  return app::run_sweep(
+      o, [&](Registry& reg, const std::vector<std::string>& from_file) { setup_registry(reg, cli, from_file); });
 }
 
 }  // namespace
@@ -216,7 +287,18 @@ int main(int argc, char** argv) {
     ("stop-after-loop", po::value(&cli.stop_after_loop), "stop cleanly after this loop's checkpoint (for time-sliced jobs)")
     ("replay", po::value(&cli.replay), "re-run one elite of a finished run and draw it: --replay RUN_DIR --cell N [--svg FILE]")
     ("cell", po::value(&cli.cell), "with --replay: the cell index (column 'index' of archive.csv)")
-    ("svg", po::value(&cli.svg), "with --replay: output file (default RUN_DIR/replay-cell-N.svg)");
+    ("svg", po::value(&cli.svg), "with --replay: output file (default RUN_DIR/replay-cell-N.svg)")
+    ("all", po::bool_switch(&cli.all), "with --replay: re-run every elite and write their trajectories (--traces)")
+    ("traces", po::value(&cli.traces), "with --replay --all: output CSV (default RUN_DIR/traces.csv)")
+    ("latents", po::value(&cli.latents), "write the latent codes of RUN_DIR's dataset to CSV (-o FILE, default RUN_DIR/latents.csv)");
+  po::options_description sweeping("Sweeps: qdrun A.toml B.toml... [--seeds LIST] [options]");
+  sweeping.add_options()
+    ("seeds", po::value(&cli.seeds), "run every experiment with each seed: 100,200,300 or 1-5")
+    ("jobs", po::value(&cli.jobs), "runs at a time (default: all cores; each run gets cores/jobs workers)")
+    ("evaluations", po::value(&cli.evaluations), "budget per run: experiment.loops set to reach at least this many evaluations")
+    ("set-optional", po::value(&cli.optional_sets)->composing(), "like --set, only for runs whose component has the key (e.g. representation.max_epochs=200)")
+    ("dry-run", po::bool_switch(&cli.dry_run), "print what the sweep would do, start nothing");
+  visible.add(sweeping);
   // clang-format on
   po::options_description hidden;
   hidden.add_options()("experiment", po::value(&cli.experiments)->composing(), "experiment file");
@@ -249,6 +331,8 @@ int main(int argc, char** argv) {
       return cli.list ? list_components(reg) : describe(reg, cli.describe);
     }
     if (!cli.replay.empty()) return replay(cli);
+    if (!cli.latents.empty()) return latents(cli);
+    if (sweep_requested(cli)) return sweep(cli);
     if (cli.workers < 0) throw InputError("--workers must be >= 0");
     if (cli.resume.empty() && cli.experiments.size() != 1)
       throw InputError(cli.experiments.empty() ? "no experiment file given (qdrun EXPERIMENT.toml; see --help)"

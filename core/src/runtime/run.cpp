@@ -180,10 +180,17 @@ void Run::open_for_resume() {
   if (!fs::exists(dir_ / kCheckpointFile, ec))
     throw InputError(dir_.string() + " has no checkpoint to resume from (the run stopped before the end of loop 0)");
   if (::access(dir_.c_str(), W_OK) != 0) throw InputError("the run directory " + dir_.string() + " is not writable");
-  load_checkpoint();
+  load_checkpoint(true);
   write_file_atomic(dir_ / "config.toml", ex_.resolved_toml);
   set_status("running");
   write_provenance();
+}
+
+void Run::open_for_inspection() {
+  std::error_code ec;
+  if (!fs::exists(dir_ / kCheckpointFile, ec))
+    throw InputError(dir_.string() + " has no checkpoint (the run stopped before the end of loop 0)");
+  load_checkpoint(false);
 }
 
 double Run::wall_seconds() const {
@@ -531,8 +538,15 @@ void Run::write_snapshot(const fs::path& path) const {
   commit_file(tmp, path);
 }
 
-Trace Run::replay(std::int64_t cell, const fs::path& svg) const {
-  const fs::path csv = dir_ / "archive.csv";
+namespace {
+
+// The elites of a final archive.csv: their cells and parameter rows.
+struct StoredElites {
+  std::vector<std::int64_t> cells;
+  Matrix theta;
+};
+
+StoredElites read_archive_solutions(const fs::path& csv, std::size_t P) {
   std::ifstream in(csv);
   if (!in) throw InputError(csv.string() + ": no final archive (is the run complete?)");
   std::string header, line;
@@ -548,27 +562,99 @@ Trace Run::replay(std::int64_t cell, const fs::path& svg) const {
   if (first == columns.end())
     throw InputError(csv.string() + ": has no solution_* columns (output.snapshot_parameters was false)");
   const auto offset = static_cast<std::size_t>(first - columns.begin());
-  const std::size_t P = shape_.param_count();
+  StoredElites out;
+  std::vector<double> values;
   while (std::getline(in, line)) {
-    if (std::stoll(line.substr(0, line.find(','))) != cell) continue;
-    Matrix theta(1, static_cast<Eigen::Index>(P));
+    if (line.empty()) continue;
+    out.cells.push_back(std::stoll(line.substr(0, line.find(','))));
     std::size_t pos = 0;
     for (std::size_t k = 0; k < offset; ++k) pos = line.find(',', pos) + 1;
     for (std::size_t k = 0; k < P; ++k) {
       const std::size_t c = line.find(',', pos);
-      theta(0, static_cast<Eigen::Index>(k)) = std::stod(line.substr(pos, c - pos));
+      values.push_back(std::stod(line.substr(pos, c - pos)));
       pos = c + 1;
     }
-    std::vector<Trace> traces(1);
-    const std::uint64_t seed = 0;
-    RolloutBatch b{&shape_, &theta, &seed, 0, 1};
-    env_->rollout(b, traces.data());
-    std::ofstream out(svg);
-    if (!out || !env_->draw_svg(traces[0], out))
-      throw InputError("cannot draw to " + svg.string() + " (environment '" + ex_.environment.type + "')");
-    return traces[0];
   }
-  throw InputError(csv.string() + ": no elite in cell " + std::to_string(cell));
+  out.theta.resize(static_cast<Eigen::Index>(out.cells.size()), static_cast<Eigen::Index>(P));
+  std::copy(values.begin(), values.end(), out.theta.data());
+  return out;
+}
+
+}  // namespace
+
+Trace Run::replay(std::int64_t cell, const fs::path& svg) const {
+  const fs::path csv = dir_ / "archive.csv";
+  const StoredElites elites = read_archive_solutions(csv, shape_.param_count());
+  const auto it = std::find(elites.cells.begin(), elites.cells.end(), cell);
+  if (it == elites.cells.end()) throw InputError(csv.string() + ": no elite in cell " + std::to_string(cell));
+  Matrix theta = elites.theta.row(it - elites.cells.begin());
+  std::vector<Trace> traces(1);
+  const std::uint64_t seed = 0;
+  RolloutBatch b{&shape_, &theta, &seed, 0, 1};
+  env_->rollout(b, traces.data());
+  std::ofstream out(svg);
+  if (!out || !env_->draw_svg(traces[0], out))
+    throw InputError("cannot draw to " + svg.string() + " (environment '" + ex_.environment.type + "')");
+  return traces[0];
+}
+
+Run::ReplayAllResult Run::replay_all(const fs::path& csv) {
+  const StoredElites elites = read_archive_solutions(dir_ / "archive.csv", shape_.param_count());
+  const std::size_t n = elites.cells.size();
+  // Seed 0 for every episode, as --replay: the environments of the paper do not use it.
+  const std::vector<std::uint64_t> seeds(n, 0);
+  Evaluations ev;
+  evaluator_->evaluate(elites.theta, seeds, ev);
+  int cols = 0;
+  for (const Trace& t : ev.traces) cols = std::max(cols, t.main.cols);
+  std::string out = "cell,landed,status,row";
+  for (int c = 0; c < cols; ++c) out += ",main_" + std::to_string(c);
+  out += '\n';
+  ReplayAllResult r;
+  r.elites = n;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Trace& t = ev.traces[i];
+    if (ev.cells[i] == elites.cells[i]) ++r.as_stored;
+    for (std::size_t row = 0; row < t.main.rows(); ++row) {
+      append_int(out, elites.cells[i]);
+      out += ',';
+      append_int(out, ev.cells[i]);
+      out += ',';
+      out += to_string(t.status);
+      out += ',';
+      append_int(out, static_cast<std::int64_t>(row));
+      for (int c = 0; c < cols; ++c) {
+        out += ',';
+        if (c < t.main.cols) append_number(out, t.main.at(row, c));
+      }
+      out += '\n';
+    }
+  }
+  write_file_atomic(csv, out);
+  return r;
+}
+
+void Run::write_latents(const fs::path& csv) const {
+  const int L = repr_->latent_size();
+  if (L == 0)
+    throw InputError(dir_.string() + ": [representation] type = \"" + ex_.representation.type +
+                     "\" has no latent space");
+  Matrix z;
+  repr_->encode(Matrix(dataset_->params()), z);
+  std::string out = "cell,loop";
+  for (int k = 0; k < L; ++k) out += ",z_" + std::to_string(k);
+  out += '\n';
+  for (std::size_t i = 0; i < dataset_->size(); ++i) {
+    append_int(out, dataset_->cells()[i]);
+    out += ',';
+    append_int(out, dataset_->loops()[i]);
+    for (int k = 0; k < L; ++k) {
+      out += ',';
+      append_number(out, z(static_cast<Eigen::Index>(i), k));
+    }
+    out += '\n';
+  }
+  write_file_atomic(csv, out);
 }
 
 void Run::write_checkpoint(int loop) {
@@ -667,7 +753,7 @@ void Run::load_dataset(std::uint64_t rows) {
   dataset_bytes_saved_ = sizeof(kDatasetMagic) + sizeof(P) + rows * dataset_row_bytes(P);
 }
 
-void Run::load_checkpoint() {
+void Run::load_checkpoint(bool cut_logs) {
   std::ifstream in(dir_ / kCheckpointFile, std::ios::binary);
   std::stringstream ss;
   ss << in.rdbuf();
@@ -704,6 +790,7 @@ void Run::load_checkpoint() {
     blob(*initial_, "initial sampler");
     // Cut the logs back to the checkpoint and drop logs created after it.
     for (const auto& e : fs::directory_iterator(dir_)) {
+      if (!cut_logs) break;
       if (!e.is_regular_file() || !is_appended_log(e.path())) continue;
       const std::string name = e.path().filename().string();
       const auto it = std::find_if(logs.begin(), logs.end(), [&](const auto& l) { return l.first == name; });

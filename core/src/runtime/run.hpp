@@ -62,6 +62,9 @@ class Run {
   // loads its checkpoint.
   void create_directory();
   void open_for_resume();
+  // Loads the checkpoint of an existing run directory without touching any file in it (for
+  // tools that inspect a run, possibly while it is still running).
+  void open_for_inspection();
 
   // Runs until the configured number of loops (or stop_after_loop). Returns true when finished.
   bool run();
@@ -69,6 +72,19 @@ class Run {
   // Re-runs the elite of `cell` from the run directory's archive.csv and draws it to `svg`.
   // Returns the replayed trace (its status tells whether it still evaluates as stored).
   Trace replay(std::int64_t cell, const std::filesystem::path& svg) const;
+
+  // Re-runs every elite of archive.csv (on the run's workers) and writes their `main` trajectory
+  // rows to `csv`: cell,landed,status,row,main_0,... (`landed` = the cell the replay falls in).
+  // Returns how many elites replayed into their stored cell.
+  struct ReplayAllResult {
+    std::size_t elites = 0, as_stored = 0;
+  };
+  ReplayAllResult replay_all(const std::filesystem::path& csv);
+
+  // Writes the latent code of every dataset entry under the loaded representation to `csv`:
+  // cell,loop,z_0,... (`loop` = the loop the entry joined the dataset). Needs a checkpoint
+  // (open_for_inspection) and a representation with a latent space.
+  void write_latents(const std::filesystem::path& csv) const;
 
   // Accessors for tests and tools.
   const Archive& archive() const { return *archive_; }
@@ -85,7 +101,7 @@ class Run {
   void write_metrics_row(int loop, int iteration, const Offspring* off, std::size_t added, std::size_t replaced,
                          std::size_t invalid);
   void write_checkpoint(int loop);
-  void load_checkpoint();
+  void load_checkpoint(bool cut_logs);
   void load_dataset(std::uint64_t rows);
   void finish_checkpoints();  // waits for the checkpoint in flight; rethrows its write error
   void write_snapshot(const std::filesystem::path& path) const;

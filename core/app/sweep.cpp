@@ -1,0 +1,438 @@
+#include "sweep.hpp"
+
+#include "runtime/evaluator.hpp"
+#include "runtime/experiment.hpp"
+#include "runtime/run.hpp"
+
+#include <qd/errors.hpp>
+
+#include <fcntl.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <set>
+#include <sstream>
+
+namespace qd::app {
+namespace fs = std::filesystem;
+using runtime::Document;
+using runtime::Registry;
+
+namespace {
+
+std::string toml_quote(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"' || c == '\\') out += '\\';
+    out += c;
+  }
+  return out + "\"";
+}
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::string last_line(const fs::path& p) {
+  std::ifstream in(p);
+  std::string line, last;
+  while (std::getline(in, line))
+    if (!line.empty()) last = line;
+  return last;
+}
+
+// First line where two texts differ, for the message about a run directory that holds another run.
+std::string first_difference(const std::string& a, const std::string& b) {
+  std::istringstream ia(a), ib(b);
+  std::string la, lb;
+  while (true) {
+    const bool ga = static_cast<bool>(std::getline(ia, la)), gb = static_cast<bool>(std::getline(ib, lb));
+    if (!ga && !gb) return "";
+    if (!ga) la = "<end>";
+    if (!gb) lb = "<end>";
+    if (la != lb) return "'" + la + "' there, '" + lb + "' now";
+  }
+}
+
+// The resolved configuration with its tables in sorted order: a run directory's config.toml lists
+// the environment's default descriptor among the tables, a fresh resolve appends it at the end.
+std::string canonical(const std::string& toml) {
+  std::vector<std::string> blocks(1);
+  std::istringstream in(toml);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    if (line[0] == '[' && !blocks.back().empty()) blocks.emplace_back();
+    blocks.back() += line + "\n";
+  }
+  std::sort(blocks.begin(), blocks.end());
+  std::string out;
+  for (const auto& b : blocks) out += b;
+  return out;
+}
+
+enum class Action { kFresh, kRestart, kResume, kSkip };
+
+struct PlannedRun {
+  std::string label;  // <name>/seed-<seed>
+  fs::path dir;
+  Action action = Action::kFresh;
+  std::string why;                 // for the start/skip line
+  std::vector<std::string> child;  // qdrun arguments (without the executable and --workers)
+};
+
+class RegistryCache {
+ public:
+  explicit RegistryCache(const std::function<void(Registry&, const std::vector<std::string>&)>& setup)
+      : setup_(setup) {}
+  const Registry& get(const std::vector<std::string>& from_file) {
+    std::string key;
+    for (const auto& p : from_file) key += p + '\n';
+    auto& slot = cache_[key];
+    if (!slot) {
+      slot = std::make_unique<Registry>();
+      setup_(*slot, from_file);
+    }
+    return *slot;
+  }
+
+ private:
+  const std::function<void(Registry&, const std::vector<std::string>&)>& setup_;
+  std::map<std::string, std::unique_ptr<Registry>> cache_;
+};
+
+// Whether `key` (table.name) names a parameter the run accepts: core tables always, component
+// tables when the chosen component declares it.
+bool accepts(const runtime::Experiment& ex, const std::string& key) {
+  const std::string table = key.substr(0, key.find('.'));
+  const std::string name = key.find('.') == std::string::npos ? "" : key.substr(key.find('.') + 1);
+  for (const auto& t : runtime::core_tables())
+    if (table == t.name) return true;
+  for (const runtime::ComponentConfig* cc :
+       {&ex.environment, &ex.descriptor, &ex.representation, &ex.mutator, &ex.initial}) {
+    if (cc->table != table || !cc->entry) continue;
+    const ComponentInfo& info = *cc->entry->info;
+    for (std::uint32_t k = 0; k < info.param_count; ++k)
+      if (name == info.params[k].key) return true;
+  }
+  return false;
+}
+
+// Builds the run as qdrun would (every component constructed, nothing written): the full check of
+// an experiment. Returns the resolved settings and configuration.
+struct Checked {
+  runtime::ExperimentSettings settings;
+  std::string resolved_toml;
+  fs::path dir;
+};
+
+Checked check(const Document& doc, const Registry& reg) {
+  runtime::RunOptions opt;
+  opt.workers = 1;
+  runtime::Run run(runtime::resolve(doc, reg), reg, std::move(opt));
+  return {run.experiment().settings, canonical(run.experiment().resolved_toml), run.directory()};
+}
+
+PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::uint64_t* seed, RegistryCache& regs) {
+  std::vector<std::string> overrides = o.sets;
+  auto read = [&](const std::vector<std::string>& extra) {
+    Document doc = Document::read(file);
+    for (const auto& s : extra) doc.apply_override(s);
+    if (seed) doc.apply_override("experiment.seed=" + std::to_string(*seed));
+    if (!o.output.empty()) doc.apply_override("output.dir=" + toml_quote(o.output));
+    return doc;
+  };
+  Document doc = read(overrides);
+  const Registry& reg = regs.get(doc.plugin_paths());
+  runtime::Experiment ex = runtime::resolve(doc, reg);
+  bool changed = false;
+  for (const auto& s : o.optional_sets)
+    if (accepts(ex, s.substr(0, s.find('=')))) {
+      overrides.push_back(s);
+      changed = true;
+    }
+  if (o.evaluations >= 0) {
+    // Loop 0 takes initial_samples evaluations, every later loop iterations x batch.
+    const auto& st = ex.settings;
+    const long long per_loop = static_cast<long long>(st.iterations) * st.batch;
+    const long long rest = std::max(0LL, o.evaluations - st.initial_samples);
+    overrides.push_back("experiment.loops=" + std::to_string(1 + (rest + per_loop - 1) / per_loop));
+    changed = true;
+  }
+  if (changed) doc = read(overrides);
+  const Checked now = check(doc, reg);
+
+  PlannedRun p;
+  p.dir = now.dir;
+  p.label = now.settings.name + "/seed-" + std::to_string(now.settings.seed);
+  p.child.push_back(file);
+  if (seed) p.child.insert(p.child.end(), {"--seed", std::to_string(*seed)});
+  if (!o.output.empty()) p.child.insert(p.child.end(), {"--output", o.output});
+  for (const auto& s : overrides) p.child.insert(p.child.end(), {"--set", s});
+
+  std::error_code ec;
+  const bool has_config = fs::exists(p.dir / "config.toml", ec);
+  const bool has_checkpoint = fs::exists(p.dir / "checkpoint.bin", ec);
+  if (!has_config && !has_checkpoint) {
+    p.action = Action::kFresh;
+    p.why = "fresh";
+    return p;
+  }
+  if (!has_checkpoint) {
+    p.action = Action::kRestart;
+    p.why = "restart: it died before its first checkpoint";
+    return p;
+  }
+  // The directory holds a run: it must be this run (only the budget and output keys may differ).
+  Document old = Document::read(p.dir / "config.toml");
+  const Registry& old_reg = regs.get(old.plugin_paths());
+  const int old_loops = runtime::resolve(old, old_reg).settings.loops;
+  old.apply_override("experiment.loops=" + std::to_string(now.settings.loops));
+  old.apply_override("evaluation.workers=" + std::to_string(now.settings.workers));
+  old.apply_override("output.snapshot_every=" + std::to_string(now.settings.snapshot_every));
+  old.apply_override("output.dir=" + toml_quote(now.settings.output_dir));
+  const Checked then = check(old, old_reg);
+  if (then.resolved_toml != now.resolved_toml)
+    throw InputError(p.dir.string() + " holds a run of another configuration than " + file + " (" +
+                     first_difference(then.resolved_toml, now.resolved_toml) +
+                     "); move it away or choose another --output");
+  const std::string status = read_text(p.dir / "status");
+  const bool complete = status.rfind("complete", 0) == 0 && fs::exists(p.dir / "archive.csv", ec);
+  p.child = {"--resume", p.dir.string(), "--set", "experiment.loops=" + std::to_string(now.settings.loops)};
+  if (complete && old_loops >= now.settings.loops) {
+    p.action = Action::kSkip;
+    p.why = "complete, " + std::to_string(old_loops) + " loops";
+  } else if (complete) {
+    p.action = Action::kResume;
+    p.why = "resume: extend " + std::to_string(old_loops) + " to " + std::to_string(now.settings.loops) + " loops";
+  } else {
+    p.action = Action::kResume;
+    std::string s = status.substr(0, status.find('\n'));
+    p.why = "resume: was '" + s + "'";
+  }
+  return p;
+}
+
+double now_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+// Starts one child qdrun with its output appended to RUN_DIR/qdrun.log. The child gets SIGKILL
+// when the sweep dies, so an interrupted sweep leaves no orphan runs writing into directories.
+pid_t start_child(const std::string& exe, const std::vector<std::string>& args, const fs::path& log) {
+  std::vector<char*> argv;
+  argv.push_back(const_cast<char*>(exe.c_str()));
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const pid_t parent = ::getpid();
+  std::fflush(stdout);
+  std::fflush(stderr);
+  const pid_t pid = ::fork();
+  if (pid < 0) throw Error(std::string("fork failed: ") + std::strerror(errno));
+  if (pid == 0) {
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (::getppid() != parent) ::_exit(127);  // the sweep died before prctl took effect
+    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    if (fd >= 0) {
+      ::dup2(fd, STDOUT_FILENO);
+      ::dup2(fd, STDERR_FILENO);
+    }
+    ::execv(exe.c_str(), argv.data());
+    std::fprintf(stderr, "qdrun sweep: cannot execute %s: %s\n", exe.c_str(), std::strerror(errno));
+    ::_exit(127);
+  }
+  return pid;
+}
+
+// Files that other files of the sweep include (`include = "base.toml"` or a list): shared settings,
+// not experiments, so `qdrun experiments/striker/*.toml` runs the algorithm files only.
+std::set<std::string> included_files(const std::vector<std::string>& files) {
+  std::set<std::string> out;
+  for (const auto& f : files) {
+    std::ifstream in(f);
+    std::string line;
+    while (std::getline(in, line)) {
+      const std::size_t start = line.find_first_not_of(" \t");
+      if (start == std::string::npos || line.compare(start, 7, "include") != 0) continue;
+      const std::size_t eq = line.find('=', start);
+      if (eq == std::string::npos || line.find_first_not_of(" \t", start + 7) != eq) continue;
+      for (std::size_t q = line.find('"', eq); q != std::string::npos; q = line.find('"', q)) {
+        const std::size_t e = line.find('"', q + 1);
+        if (e == std::string::npos) break;
+        std::error_code ec;
+        out.insert(fs::weakly_canonical(fs::path(f).parent_path() / line.substr(q + 1, e - q - 1), ec).string());
+        q = e + 1;
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<std::uint64_t> parse_seed_list(const std::string& text) {
+  std::vector<std::uint64_t> out;
+  std::stringstream ss(text);
+  std::string part;
+  auto number = [&](const std::string& s) {
+    if (s.empty() || s.find_first_not_of("0123456789") != std::string::npos)
+      throw InputError("--seeds " + text + ": '" + s + "' is not a non-negative integer (use 100,200,300 or 1-5)");
+    return std::stoull(s);
+  };
+  while (std::getline(ss, part, ',')) {
+    const std::size_t dash = part.find('-');
+    if (dash == std::string::npos) {
+      out.push_back(number(part));
+      continue;
+    }
+    const std::uint64_t a = number(part.substr(0, dash)), b = number(part.substr(dash + 1));
+    if (b < a || b - a > 100000) throw InputError("--seeds " + text + ": bad range '" + part + "'");
+    for (std::uint64_t s = a; s <= b; ++s) out.push_back(s);
+  }
+  if (out.empty()) throw InputError("--seeds: empty list");
+  std::set<std::uint64_t> seen;
+  for (auto s : out)
+    if (!seen.insert(s).second) throw InputError("--seeds " + text + ": seed " + std::to_string(s) + " twice");
+  return out;
+}
+
+int run_sweep(const SweepOptions& o,
+              const std::function<void(Registry&, const std::vector<std::string>&)>& setup_registry) {
+  if (o.experiments.empty()) throw InputError("no experiment file given");
+  if (o.jobs < 0 || o.workers < 0) throw InputError("--jobs and --workers must be >= 0");
+  if (o.evaluations >= 0)
+    for (const auto& s : o.sets)
+      if (s.rfind("experiment.loops=", 0) == 0) throw InputError("--evaluations and --set experiment.loops conflict");
+  for (const auto& s : o.optional_sets)
+    if (s.find('=') == std::string::npos) throw InputError("--set-optional " + s + ": expected KEY=VALUE");
+
+  // Plan and check every run before starting any: bad input anywhere stops the sweep here.
+  RegistryCache regs(setup_registry);
+  std::vector<PlannedRun> runs;
+  std::map<std::string, std::string> owner;  // run directory -> label of the file that made it
+  const std::set<std::string> included = included_files(o.experiments);
+  for (const auto& file : o.experiments) {
+    std::error_code ec;
+    if (included.count(fs::weakly_canonical(file, ec).string())) {
+      std::printf("sweep: %s is included by the other files, not an experiment: skipped\n", file.c_str());
+      continue;
+    }
+    std::vector<const std::uint64_t*> seeds;
+    for (const auto& s : o.seeds) seeds.push_back(&s);
+    if (seeds.empty()) seeds.push_back(nullptr);
+    for (const auto* seed : seeds) {
+      PlannedRun p = plan_one(o, file, seed, regs);
+      const std::string key = fs::weakly_canonical(p.dir).string();
+      if (owner.count(key))
+        throw InputError(file + ": run directory " + p.dir.string() + " is also the one of " + owner[key] +
+                         " (two experiments with the same experiment.name?)");
+      owner[key] = file + " (" + p.label + ")";
+      runs.push_back(std::move(p));
+    }
+  }
+
+  const int hw = runtime::hardware_workers();
+  std::size_t todo = 0;
+  for (const auto& r : runs) todo += r.action != Action::kSkip;
+  const int jobs = o.jobs > 0 ? o.jobs : hw;
+  const int concurrent =
+      static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(jobs), std::max<std::size_t>(todo, 1)));
+  // Cores are shared among the runs that run at once; results do not depend on the worker count.
+  const int workers = o.workers > 0 ? o.workers : std::max(1, hw / concurrent);
+  std::printf("sweep: %zu runs (%zu to do, %zu complete), %d at a time, %d worker%s each\n", runs.size(), todo,
+              runs.size() - todo, concurrent, workers, workers == 1 ? "" : "s");
+  const std::string exe = fs::read_symlink("/proc/self/exe").string();
+
+  std::size_t skipped = 0, finished = 0;
+  std::vector<std::string> failed;
+  const std::size_t width = std::to_string(runs.size()).size();
+  auto tag = [&](std::size_t i) {
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "[%*zu/%zu]", static_cast<int>(width), i + 1, runs.size());
+    return std::string(buf);
+  };
+  std::vector<std::size_t> pending;
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    if (runs[i].action == Action::kSkip) {
+      ++skipped;
+      std::printf("%s skip   %s (%s)\n", tag(i).c_str(), runs[i].label.c_str(), runs[i].why.c_str());
+    } else {
+      pending.push_back(i);
+      if (o.dry_run)
+        std::printf("%s plan   %s (%s): qdrun", tag(i).c_str(), runs[i].label.c_str(), runs[i].why.c_str());
+      if (o.dry_run) {
+        for (const auto& a : runs[i].child) std::printf(" %s", a.c_str());
+        std::printf("\n");
+      }
+    }
+  }
+  std::fflush(stdout);
+  if (o.dry_run) return 0;
+
+  std::map<pid_t, std::pair<std::size_t, double>> running;  // pid -> (run, start time)
+  std::size_t next = 0;
+  while (next < pending.size() || !running.empty()) {
+    while (next < pending.size() && static_cast<int>(running.size()) < concurrent) {
+      const std::size_t i = pending[next++];
+      PlannedRun& r = runs[i];
+      std::error_code ec;
+      if (r.action == Action::kRestart) fs::remove_all(r.dir, ec);
+      fs::create_directories(r.dir, ec);
+      if (ec) throw InputError("cannot create the run directory " + r.dir.string() + ": " + ec.message());
+      std::vector<std::string> args = r.child;
+      args.insert(args.end(), {"--workers", std::to_string(workers)});  // per-loop lines go to the log
+      for (const auto& p : o.plugin_paths) args.insert(args.end(), {"--plugin-path", p});
+      const pid_t pid = start_child(exe, args, r.dir / "qdrun.log");
+      running[pid] = {i, now_seconds()};
+      std::printf("%s start  %s (%s)\n", tag(i).c_str(), r.label.c_str(), r.why.c_str());
+      std::fflush(stdout);
+    }
+    int wstatus = 0;
+    const pid_t pid = ::waitpid(-1, &wstatus, 0);
+    if (pid < 0) {
+      if (errno == EINTR) continue;
+      throw Error(std::string("waitpid failed: ") + std::strerror(errno));
+    }
+    const auto it = running.find(pid);
+    if (it == running.end()) continue;
+    const auto [i, t0] = it->second;
+    running.erase(it);
+    const PlannedRun& r = runs[i];
+    const double seconds = now_seconds() - t0;
+    const std::string status = read_text(r.dir / "status");
+    if (WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 0 && status.rfind("complete", 0) == 0) {
+      ++finished;
+      std::printf("%s done   %s in %.1f s\n", tag(i).c_str(), r.label.c_str(), seconds);
+    } else {
+      failed.push_back(r.label);
+      const std::string how = WIFEXITED(wstatus) ? "exit code " + std::to_string(WEXITSTATUS(wstatus))
+                                                 : "killed by signal " + std::to_string(WTERMSIG(wstatus));
+      std::printf("%s FAILED %s: %s after %.1f s: %s (log %s)\n", tag(i).c_str(), r.label.c_str(), how.c_str(), seconds,
+                  last_line(r.dir / "qdrun.log").c_str(), (r.dir / "qdrun.log").c_str());
+    }
+    std::fflush(stdout);
+  }
+  std::printf("sweep: %zu runs: %zu finished, %zu skipped (already complete), %zu failed\n", runs.size(), finished,
+              skipped, failed.size());
+  if (!failed.empty()) {
+    std::printf("sweep: failed runs:");
+    for (const auto& f : failed) std::printf(" %s", f.c_str());
+    std::printf("\n");
+  }
+  std::fflush(stdout);
+  return failed.empty() ? 0 : 1;
+}
+
+}  // namespace qd::app

@@ -1,0 +1,159 @@
+#!/usr/bin/python3
+"""Checks qdplot's output against the run directories, computing every number again here (plain
+Python, no numpy): files of every kind exist, PNGs decode to the documented pixel size, SVGs parse
+as XML with the documented size, and the plotted series equal the CSV files."""
+import csv
+import json
+import math
+import struct
+import sys
+import xml.etree.ElementTree as ET
+import zlib
+from pathlib import Path
+
+runs_root, fig = Path(sys.argv[1]), Path(sys.argv[2])
+failures = []
+
+
+def check(cond, what):
+    if not cond:
+        failures.append(what)
+
+
+# Documented sizes (share/README.md) in inches; qdplot's default dpi is 100.
+SIZES = {"coverage": (8, 6), "map-striker": (12, 6.5), "map-bipedal-walker": (14, 4), "map-bipedal-kicker": (12, 4.5),
+         "traces": (7, 7), "latents": (11, 5), "losses": (8, 5)}
+EXPECTED = {
+    "coverage-arm": "coverage", "coverage-striker": "coverage", "coverage-bipedal-kicker": "coverage",
+    "coverage-bipedal-walker": "coverage",
+    "map-striker-poms": "map-striker", "map-bipedal-kicker-ps-uniform": "map-bipedal-kicker",
+    "map-bipedal-walker-mape-iso": "map-bipedal-walker",
+    "traces-striker-poms": "traces", "traces-bipedal-kicker-ps-uniform": "traces",
+    "traces-bipedal-walker-mape-iso": "traces",
+    "latents-striker-poms": "latents", "latents-arm-poms": "latents",
+    "losses-striker-poms": "losses", "losses-arm-poms": "losses",
+}
+
+
+def png_size(path):
+    data = path.read_bytes()
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        raise ValueError("not a PNG")
+    pos, idat, width = 8, b"", None
+    while pos < len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + length]
+        if kind == b"IHDR":
+            width, height, depth, colour = struct.unpack(">IIBB", body[:10])
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + length
+    channels = {0: 1, 2: 3, 4: 2, 6: 4}[colour]
+    raw = zlib.decompress(idat)  # the image data decodes: one filter byte + one row per line
+    if len(raw) != height * (1 + width * channels * depth // 8):
+        raise ValueError("image data of the wrong length")
+    return width, height
+
+
+for stem, size_kind in EXPECTED.items():
+    w, h = SIZES[size_kind]
+    try:
+        check(png_size(fig / f"{stem}.png") == (round(w * 100), round(h * 100)), f"{stem}.png size")
+    except Exception as e:  # noqa: BLE001 -- any failure to read is a test failure
+        failures.append(f"{stem}.png: {e}")
+    try:
+        root = ET.parse(fig / f"{stem}.svg").getroot()
+        check(root.tag.endswith("svg"), f"{stem}.svg root is {root.tag}")
+        check(math.isclose(float(root.get("width").rstrip("pt")), w * 72) and
+              math.isclose(float(root.get("height").rstrip("pt")), h * 72), f"{stem}.svg size")
+    except Exception as e:  # noqa: BLE001
+        failures.append(f"{stem}.svg: {e}")
+manifest = json.loads((fig / "qdplot.json").read_text())
+check({f["file"] for f in manifest["files"]} >= {f"{s}.{x}" for s in EXPECTED for x in ("png", "svg")}, "manifest")
+
+
+def rows(path):
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def run_dirs(name):
+    return sorted((runs_root / name).glob("seed-*"))
+
+
+def cells_of(run):
+    for line in (run / "provenance.toml").read_text().splitlines():
+        if line.startswith("cells = "):
+            return int(line.split("=")[1])
+
+
+def nearest(values, q):
+    s = sorted(values)
+    return s[int(round(q / 100 * (len(s) - 1)))]  # numpy's 'nearest' (round half to even)
+
+
+# Coverage: the median and quartiles over seeds at every evaluation count, in percent of all cells.
+cov = json.loads((fig / "coverage-arm.json").read_text())
+for alg, name in (("MAPE-Iso", "smoke-iso"), ("PoMS", "smoke-poms")):
+    entry = cov["algorithms"][alg]
+    dirs = run_dirs(name)
+    check(entry["seeds"] == [1, 2, 3], f"{alg} seeds {entry['seeds']}")
+    series = []
+    for d in dirs:
+        m = rows(d / "metrics.csv")
+        series.append({int(r["evaluations"]): 100.0 * int(r["elites"]) / cells_of(d) for r in m})
+        check(math.isclose(100 * float(m[-1]["coverage"]), series[-1][int(m[-1]["evaluations"])], rel_tol=1e-4),
+              "coverage column vs elites")
+    xs = sorted(series[0])
+    check(entry["evaluations"] == xs, f"{alg} evaluation grid")
+    for i, x in enumerate(xs):
+        vals = [s[x] for s in series]
+        for key, q in (("median", 50), ("q25", 25), ("q75", 75)):
+            check(math.isclose(entry[key][i], nearest(vals, q), abs_tol=1e-9), f"{alg} {key} at {x}")
+    loops = {}
+    for r in rows(dirs[0] / "metrics.csv"):
+        loops[int(r["loop"])] = int(r["evaluations"])
+    check(entry["loop_end_evaluations"] == sorted(loops.values()), f"{alg} loop boundaries")
+check("mixing_ratio" in cov["algorithms"]["PoMS"], "PoMS mixing ratio panel")
+
+# Maps: every elite of the archive is a filled cell, in the environment's layout.
+for stem, name in (("map-striker-poms", "striker-poms"), ("map-bipedal-kicker-ps-uniform", "bipedal-kicker-ps-uniform"),
+                   ("map-bipedal-walker-mape-iso", "bipedal-walker-iso")):
+    data = json.loads((fig / f"{stem}.json").read_text())
+    cells = [int(r["index"]) for r in rows(run_dirs(name)[0] / "archive.csv")]
+    check(data["elites"] == len(cells) and data["filled"] == len(cells), f"{stem}: {data['filled']} vs {len(cells)}")
+    if "per_class" in data:
+        check(data["per_class"] == [sum(1 for c in cells if c // 900 == g) for g in range(17)], f"{stem} classes")
+
+# Trajectories: one path per elite, and every replay lands in its stored cell.
+for stem, name in (("traces-striker-poms", "striker-poms"), ("traces-bipedal-kicker-ps-uniform",
+                   "bipedal-kicker-ps-uniform"), ("traces-bipedal-walker-mape-iso", "bipedal-walker-iso")):
+    data = json.loads((fig / f"{stem}.json").read_text())
+    n = len(rows(run_dirs(name)[0] / "archive.csv"))
+    check(data["elites"] == n and data["replayed_as_stored"] == n, f"{stem}: {data['elites']} paths, {n} elites")
+
+# Latents: the two dimensions of highest variance of the dataset's codes, one point per dataset entry.
+for stem, name in (("latents-striker-poms", "striker-poms"), ("latents-arm-poms", "smoke-poms")):
+    data = json.loads((fig / f"{stem}.json").read_text())
+    table = rows(data["source"])
+    zcols = [k for k in table[0] if k.startswith("z_")]
+    def variance(k):
+        v = [float(r[k]) for r in table]
+        mean = sum(v) / len(v)
+        return sum((a - mean) ** 2 for a in v) / len(v)
+    ranked = sorted(zcols, key=lambda k: -variance(k))
+    check(data["dimensions"] == ranked[:2], f"{stem} dimensions {data['dimensions']} vs {ranked[:2]}")
+    check(data["entries"] == len(table), f"{stem} entries")
+
+# Losses: every epoch of every loop of losses.csv.
+for stem, name in (("losses-striker-poms", "striker-poms"),):
+    data = json.loads((fig / f"{stem}.json").read_text())
+    ls = rows(run_dirs(name)[0] / "losses.csv")
+    for loop, entry in data["loops"].items():
+        mine = [float(r["train_loss"]) for r in ls if r["loop"] == loop]
+        check(entry["train_loss"] == mine, f"{stem} loop {loop} train losses")
+
+if failures:
+    print("qdplot check FAILED:\n  " + "\n  ".join(failures))
+    sys.exit(1)
+print(f"qdplot check ok: {len(EXPECTED)} figures x 2 formats")

@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Sweep basics: files x seeds, --evaluations per run, --set-optional only where the key exists,
+# larger loops extend finished runs, and a failing run makes the sweep exit non-zero naming it.
+source "$(dirname "$0")/lib.sh"
+qdrun=$1 smoke=$2 out=$3
+rm -rf "$out" "$out-single" "$out-dry"
+log=$out.log
+"$qdrun" "$smoke/iso.toml" "$smoke/uniform.toml" "$smoke/poms.toml" --seeds 1,2 -o "$out" \
+  --evaluations 300 --set-optional representation.max_epochs=7 > "$log"
+cat "$log"
+grep -q "6 runs: 6 finished, 0 skipped (already complete), 0 failed" "$log"
+for d in "$out"/*/seed-*; do grep -qx complete "$d/status"; done
+# 300 evaluations: loop 0 takes 100, then 100 per loop (5 x 20) -> 3 loops; uniform: 1 x 2000 per loop.
+[ "$(tail -n 1 "$out/smoke-iso/seed-1/metrics.csv" | cut -d, -f3)" -eq 300 ]
+grep -q "^max_epochs = 7$" "$out/smoke-poms/seed-2/config.toml"
+! grep -q "max_epochs" "$out/smoke-iso/seed-2/config.toml"
+# The same runs with seed 1 equal single qdrun runs.
+"$qdrun" "$smoke/iso.toml" --seed 1 -o "$out-single" -q --set experiment.loops=3
+same_results "$out-single/smoke-iso/seed-1" "$out/smoke-iso/seed-1"
+# Extending: loops=4 resumes every run with a larger budget.
+"$qdrun" "$smoke/iso.toml" --seeds 1,2 -o "$out" --set experiment.loops=4 | grep -q "2 runs: 2 finished"
+grep -q "loops = 4" "$out/smoke-iso/seed-1/config.toml"
+# A run that fails (an unreadable checkpoint) is named, the others still run.
+printf 'garbage' > "$out/smoke-poms/seed-1/checkpoint.bin"
+rm "$out/smoke-poms/seed-1/archive.csv"; echo running > "$out/smoke-poms/seed-1/status"
+set +e
+"$qdrun" "$smoke/poms.toml" --seeds 1,2 -o "$out" --evaluations 300 --set-optional representation.max_epochs=7 > "$log"
+rc=$?
+set -e
+cat "$log"
+[ $rc -eq 1 ] || { echo "sweep exit code $rc, expected 1"; exit 1; }
+grep -q "FAILED smoke-poms/seed-1" "$log"
+grep -q "failed runs: smoke-poms/seed-1" "$log"
+# experiments/striker/*.toml: base.toml is included by the others and skipped; --dry-run starts nothing.
+"$qdrun" "$smoke/../striker/"*.toml --seeds 1,2 -o "$out-dry" --dry-run > "$log"
+grep -q "base.toml is included by the other files" "$log"
+grep -q "^sweep: 16 runs (16 to do, 0 complete)" "$log"
+[ "$(grep -c " plan   striker-" "$log")" -eq 16 ]
+[ ! -e "$out-dry" ] || { echo "--dry-run created $out-dry"; exit 1; }
+echo "sweep ok"
