@@ -2,7 +2,9 @@
 #include <qd/errors.hpp>
 #include <qd/state_io.hpp>
 
+#include <algorithm>
 #include <numeric>
+#include <string>
 
 namespace qd {
 
@@ -27,6 +29,7 @@ Insertion Archive::offer(std::int64_t cell, const double* params, const double* 
     desc_.resize(desc_.size() + dims_);
     fitness_.push_back(0.0);
     recn_.push_back(0.0);
+    dirty_.push_back(0);
     result = Insertion::kAdded;
   } else if (!replace) {
     return Insertion::kRejected;
@@ -36,7 +39,32 @@ Insertion Archive::offer(std::int64_t cell, const double* params, const double* 
   std::copy(descriptor, descriptor + dims_, desc_.begin() + static_cast<std::ptrdiff_t>(s * dims_));
   fitness_[s] = fitness;
   recn_[s] = recn_error;
+  mark_dirty(s);
   return result;
+}
+
+void Archive::take_dirty(std::vector<std::size_t>& slots) {
+  slots.swap(dirty_slots_);
+  dirty_slots_.clear();
+  for (std::size_t s : slots) dirty_[s] = 0;
+}
+
+void Archive::restore(std::size_t slot, std::int64_t cell, const double* params, const double* descriptor,
+                      double fitness, double recn_error) {
+  if (cell < 0 || cell >= cells_) throw StateError("archive record has an invalid cell index");
+  const bool was_dirty = slot < size() && dirty_[slot];
+  if (slot == size() && cell_slot_[static_cast<std::size_t>(cell)] < 0) {
+    offer(cell, params, descriptor, fitness, recn_error, false);
+  } else if (slot < size() && slot_cell_[slot] == cell) {
+    offer(cell, params, descriptor, fitness, recn_error, true);
+  } else {
+    throw StateError("archive record does not fit the archive (slot " + std::to_string(slot) + ", cell " +
+                     std::to_string(cell) + ")");
+  }
+  if (!was_dirty) {  // offer() just marked it, so it is the last dirty slot
+    dirty_[slot] = 0;
+    dirty_slots_.pop_back();
+  }
 }
 
 void Archive::select(std::size_t n, Rng& rng, Parents& out) const {
@@ -103,6 +131,10 @@ void Archive::load(std::istream& in) {
       throw StateError("archive in checkpoint has an invalid cell index");
     cell_slot_[static_cast<std::size_t>(c)] = static_cast<std::int64_t>(s);
   }
+  // Conservative: every loaded slot counts as written.
+  dirty_.assign(m, 1);
+  dirty_slots_.resize(m);
+  std::iota(dirty_slots_.begin(), dirty_slots_.end(), std::size_t{0});
 }
 
 }  // namespace qd

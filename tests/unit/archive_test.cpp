@@ -5,6 +5,7 @@
 
 #include <set>
 #include <sstream>
+#include <vector>
 
 using namespace qd;
 
@@ -64,4 +65,41 @@ TEST(Archive, MeanReconstructionErrorAndRoundTrip) {
   a.save(s2);
   Archive wrong(11, 3, 2);
   EXPECT_THROW(wrong.load(s2), StateError);
+}
+
+TEST(Archive, DirtySlotsAreTheWrittenOnesInFirstWriteOrder) {
+  Archive a(10, 3, 2);
+  a.offer(7, kP1, kD, 0, 0, false);  // slot 0
+  a.offer(2, kP1, kD, 0, 0, false);  // slot 1
+  std::vector<std::size_t> dirty;
+  a.take_dirty(dirty);
+  EXPECT_EQ(dirty, (std::vector<std::size_t>{0, 1}));
+  a.take_dirty(dirty);
+  EXPECT_TRUE(dirty.empty());
+  a.offer(2, kP2, kD, 0, 0, false);  // rejected: not written
+  a.offer(3, kP1, kD, 0, 0, false);  // slot 2
+  a.offer(7, kP2, kD, 0, 0, true);   // slot 0 replaced
+  a.offer(3, kP2, kD, 0, 0, true);   // slot 2 again: listed once
+  a.set_recn_error(1, 0.5);
+  a.take_dirty(dirty);
+  EXPECT_EQ(dirty, (std::vector<std::size_t>{2, 0, 1}));
+}
+
+TEST(Archive, RestoreRebuildsFromRecordsAndRejectsMisfits) {
+  Archive a(10, 3, 2);
+  a.restore(0, 7, kP1, kD, 1.0, 0.1);
+  a.restore(1, 2, kP1, kD, 2.0, 0.2);
+  a.restore(0, 7, kP2, kD, 3.0, 0.3);  // a later record of slot 0 wins
+  EXPECT_EQ(a.size(), 2u);
+  EXPECT_EQ(a.slot_of(7), 0);
+  EXPECT_EQ(a.params(0)[0], 4.0);
+  EXPECT_EQ(a.fitness(0), 3.0);
+  EXPECT_EQ(a.recn_error(0), 0.3);
+  std::vector<std::size_t> dirty;
+  a.take_dirty(dirty);
+  EXPECT_TRUE(dirty.empty()) << "restored slots are already saved";
+  EXPECT_THROW(a.restore(5, 4, kP1, kD, 0, 0), StateError);   // slot beyond the end
+  EXPECT_THROW(a.restore(1, 3, kP1, kD, 0, 0), StateError);   // slot 1 holds cell 2
+  EXPECT_THROW(a.restore(2, 7, kP1, kD, 0, 0), StateError);   // cell 7 already has slot 0
+  EXPECT_THROW(a.restore(2, 10, kP1, kD, 0, 0), StateError);  // no such cell
 }

@@ -46,7 +46,10 @@ class QD_EXPORT Archive {
   const double* descriptor(std::size_t slot) const { return desc_.data() + slot * dims_; }
   double fitness(std::size_t slot) const { return fitness_[slot]; }
   double recn_error(std::size_t slot) const { return recn_[slot]; }
-  void set_recn_error(std::size_t slot, double e) { recn_[slot] = e; }
+  void set_recn_error(std::size_t slot, double e) {
+    recn_[slot] = e;
+    mark_dirty(slot);
+  }
 
   // Puts an individual into `cell`: adds it when the cell is empty; when occupied, replaces the
   // occupant if `replace` is true (the insertion rule's decision) and rejects it otherwise.
@@ -63,7 +66,21 @@ class QD_EXPORT Archive {
   void save(std::ostream& out) const;
   void load(std::istream& in);
 
+  // Incremental checkpoints. take_dirty() moves out the slots written (added, replaced or given a
+  // new error) since the previous call, in first-write order, and clears the marks. restore() puts
+  // a saved slot back: slot == size() appends it, a smaller slot overwrites (same cell).
+  void take_dirty(std::vector<std::size_t>& slots);
+  void restore(std::size_t slot, std::int64_t cell, const double* params, const double* descriptor, double fitness,
+               double recn_error);
+
  private:
+  void mark_dirty(std::size_t slot) {
+    if (!dirty_[slot]) {
+      dirty_[slot] = 1;
+      dirty_slots_.push_back(slot);
+    }
+  }
+
   std::int64_t cells_;
   std::size_t param_count_;
   std::size_t dims_;
@@ -73,6 +90,8 @@ class QD_EXPORT Archive {
   std::vector<double> desc_;
   std::vector<double> fitness_;
   std::vector<double> recn_;
+  std::vector<std::uint8_t> dirty_;  // per slot
+  std::vector<std::size_t> dirty_slots_;
 };
 
 }  // namespace qd

@@ -86,15 +86,14 @@ void CheckpointWriter::work() {
 }
 
 void CheckpointWriter::write(const Job& job) {
-  // Dataset rows first: the checkpoint that counts them must never be visible before they are durable.
-  {
-    Fd f{::open(job.dataset.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644)};
-    if (f.fd < 0) throw Error("cannot open " + job.dataset.string() + ": " + std::strerror(errno));
-    // Rows past the committed size come from a checkpoint that never committed.
-    if (::ftruncate(f.fd, static_cast<off_t>(job.dataset_offset)) != 0)
-      throw Error("cannot truncate " + job.dataset.string() + ": " + std::strerror(errno));
-    write_at(f.fd, job.dataset_rows, job.dataset_offset, job.dataset);
-    if (::fsync(f.fd) != 0) throw Error("cannot flush " + job.dataset.string() + ": " + std::strerror(errno));
+  // Appended data first: a checkpoint that counts it must never be visible before it is durable.
+  for (const Append& a : job.appends) {
+    Fd f{::open(a.path.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644)};
+    if (f.fd < 0) throw Error("cannot open " + a.path.string() + ": " + std::strerror(errno));
+    if (::ftruncate(f.fd, static_cast<off_t>(a.offset)) != 0)
+      throw Error("cannot truncate " + a.path.string() + ": " + std::strerror(errno));
+    write_at(f.fd, a.bytes, a.offset, a.path);
+    if (::fsync(f.fd) != 0) throw Error("cannot flush " + a.path.string() + ": " + std::strerror(errno));
   }
   const std::filesystem::path tmp = job.checkpoint.string() + ".tmp";
   {
@@ -103,6 +102,10 @@ void CheckpointWriter::write(const Job& job) {
     write_at(f.fd, job.state, 0, tmp);
   }
   commit_file(tmp, job.checkpoint);
+  for (const auto& p : job.remove_after) {
+    std::error_code ec;
+    std::filesystem::remove(p, ec);  // only space is lost if this fails
+  }
 }
 
 }  // namespace qd::runtime

@@ -1,10 +1,10 @@
 // Writes checkpoints on a background thread, so the loop does not wait for the disk.
 //
-// The loop serialises its state into a buffer at a loop boundary (a memory copy) and hands it over;
-// this thread appends the dataset rows that are new since the last checkpoint to `dataset.bin`,
-// then writes, fsyncs and renames `checkpoint.bin`. At most one checkpoint is in flight: the next
-// submit() (and wait()) first waits for the previous one. A checkpoint that was not committed when
-// the process died is simply absent, and resume continues from the one before, which is equally
+// The loop serialises its state into buffers at a loop boundary (a memory copy) and hands them
+// over; this thread appends what is new since the last checkpoint to the append-only files (the
+// dataset rows, the archive slots written since), then writes, fsyncs and renames `checkpoint.bin`. At most one
+// checkpoint is in flight: the next submit() (and wait()) first waits for the previous one. A checkpoint that was not
+// committed when the process died is simply absent, and resume continues from the one before, which is equally
 // bit-identical (the logs are cut back to the sizes that checkpoint recorded).
 #pragma once
 
@@ -16,6 +16,7 @@
 #include <streambuf>
 #include <string>
 #include <thread>
+#include <vector>
 
 namespace qd::runtime {
 
@@ -41,12 +42,18 @@ class StringAppender : public std::streambuf {
 
 class CheckpointWriter {
  public:
+  // Bytes for an append-only file: written at `offset`, its committed size so far. Anything past
+  // the offset comes from a checkpoint that never committed and is cut away first.
+  struct Append {
+    std::filesystem::path path;
+    std::uint64_t offset = 0;
+    std::string bytes;
+  };
   struct Job {
-    std::filesystem::path checkpoint;  // final path; written via "<path>.tmp"
-    std::string state;                 // checkpoint bytes
-    std::filesystem::path dataset;     // append-only dataset rows file
-    std::uint64_t dataset_offset = 0;  // its committed size before this job's rows
-    std::string dataset_rows;          // bytes to write at dataset_offset
+    std::filesystem::path checkpoint;                 // final path; written via "<path>.tmp"
+    std::string state;                                // checkpoint bytes
+    std::vector<Append> appends;                      // made durable before the checkpoint is committed
+    std::vector<std::filesystem::path> remove_after;  // files the new checkpoint no longer needs
   };
 
   CheckpointWriter();

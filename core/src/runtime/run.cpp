@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <ctime>
 #include <fstream>
 #include <numeric>
@@ -24,9 +25,10 @@ namespace {
 
 constexpr char kCheckpointMagic[8] = {'Q', 'D', 'C', 'K', 'P', 'T', '0', '2'};
 constexpr const char* kCheckpointFile = "checkpoint.bin";
-// Checkpoint format 02: the dataset lives in an append-only file beside the checkpoint.
+// Checkpoint format 02: the archive and the dataset live in append-only files beside the checkpoint.
 constexpr char kDatasetMagic[8] = {'Q', 'D', 'D', 'S', 'E', 'T', '0', '1'};
 constexpr const char* kDatasetFile = "dataset.bin";
+constexpr char kArchiveLogMagic[8] = {'Q', 'D', 'A', 'R', 'L', 'G', '0', '1'};
 
 // One dataset row in dataset.bin: cell (int64), loop (int64), then P doubles.
 std::size_t dataset_row_bytes(std::size_t P) {
@@ -657,16 +659,92 @@ void Run::write_latents(const fs::path& csv) const {
   write_file_atomic(csv, out);
 }
 
+template <class T>
+void append_raw(std::string& out, const T& v) {
+  out.append(reinterpret_cast<const char*>(&v), sizeof(T));
+}
+
+fs::path Run::archive_log_path(std::uint64_t generation) const {
+  char name[40];
+  std::snprintf(name, sizeof(name), "archive-state-%05llu.bin", static_cast<unsigned long long>(generation));
+  return dir_ / name;
+}
+
+std::size_t Run::archive_record_bytes() const {
+  return 4 * sizeof(std::int64_t) + (archive_->descriptor_dims() + shape_.param_count()) * sizeof(double);
+}
+
+void Run::append_archive_record(std::string& out, std::size_t slot) const {
+  const auto slot64 = static_cast<std::int64_t>(slot);
+  append_raw(out, slot64);
+  append_raw(out, archive_->cell(slot));
+  append_raw(out, archive_->fitness(slot));
+  append_raw(out, archive_->recn_error(slot));
+  out.append(reinterpret_cast<const char*>(archive_->descriptor(slot)), archive_->descriptor_dims() * sizeof(double));
+  out.append(reinterpret_cast<const char*>(archive_->params(slot)), shape_.param_count() * sizeof(double));
+}
+
 void Run::write_checkpoint(int loop) {
-  // Serialised here (a memory copy of the state at this loop boundary), written by the background
-  // writer while the next loop runs. Waits for the previous checkpoint first.
+  // Serialised here (a memory copy of what changed since the last checkpoint), written by the
+  // background writer while the next loop runs. Waits for the previous checkpoint first.
   if (!checkpoint_writer_) checkpoint_writer_ = std::make_unique<CheckpointWriter>();
   checkpoint_writer_->wait();
   CheckpointWriter::Job& job = checkpoint_job_;
   job.checkpoint = dir_ / kCheckpointFile;
-  job.dataset = dir_ / kDatasetFile;
   job.state.clear();
-  job.dataset_rows.clear();
+  job.appends.resize(2);
+  job.remove_after.clear();
+  for (auto& a : job.appends) a.bytes.clear();
+
+  // The archive: an append-only log of slot records; each checkpoint appends the slots written
+  // since the previous one. When more than half the log is stale, a new generation is started with
+  // one record per slot and the old file is removed once the new checkpoint is committed.
+  CheckpointWriter::Append& arch = job.appends[0];
+  std::vector<std::size_t>& dirty = dirty_slots_;
+  archive_->take_dirty(dirty);
+  const std::size_t rec = archive_record_bytes();
+  const std::uint64_t header = sizeof(kArchiveLogMagic) + 2 * sizeof(std::uint64_t);
+  const std::uint64_t live = header + archive_->size() * rec;
+  const bool compact = archive_bytes_saved_ == 0 || archive_bytes_saved_ + dirty.size() * rec > 2 * live;
+  if (compact) {
+    if (archive_bytes_saved_ != 0) {
+      job.remove_after.push_back(archive_log_path(archive_generation_));
+      ++archive_generation_;
+    }
+    arch.path = archive_log_path(archive_generation_);
+    arch.offset = 0;
+    arch.bytes.reserve(live);
+    arch.bytes.append(kArchiveLogMagic, sizeof(kArchiveLogMagic));
+    append_raw(arch.bytes, static_cast<std::uint64_t>(shape_.param_count()));
+    append_raw(arch.bytes, static_cast<std::uint64_t>(archive_->descriptor_dims()));
+    for (std::size_t slot = 0; slot < archive_->size(); ++slot) append_archive_record(arch.bytes, slot);
+  } else {
+    arch.path = archive_log_path(archive_generation_);
+    arch.offset = archive_bytes_saved_;
+    arch.bytes.reserve(dirty.size() * rec);
+    for (std::size_t slot : dirty) append_archive_record(arch.bytes, slot);
+  }
+  archive_bytes_saved_ = arch.offset + arch.bytes.size();
+
+  // The dataset only grows, so each checkpoint appends the rows that are new since the last one.
+  CheckpointWriter::Append& data = job.appends[1];
+  const std::size_t P = shape_.param_count();
+  data.path = dir_ / kDatasetFile;
+  data.offset = dataset_bytes_saved_;
+  if (dataset_bytes_saved_ == 0) {
+    data.bytes.append(kDatasetMagic, sizeof(kDatasetMagic));
+    append_raw(data.bytes, static_cast<std::uint64_t>(P));
+  }
+  data.bytes.reserve(data.bytes.size() + (dataset_->size() - dataset_rows_saved_) * dataset_row_bytes(P));
+  for (std::size_t k = dataset_rows_saved_; k < dataset_->size(); ++k) {
+    append_raw(data.bytes, dataset_->cells()[k]);
+    append_raw(data.bytes, static_cast<std::int64_t>(dataset_->loops()[k]));
+    data.bytes.append(reinterpret_cast<const char*>(dataset_->params().row(static_cast<Eigen::Index>(k)).data()),
+                      P * sizeof(double));
+  }
+  dataset_bytes_saved_ = data.offset + data.bytes.size();
+  dataset_rows_saved_ = dataset_->size();
+
   {
     StringAppender sink(job.state);
     std::ostream o(&sink);
@@ -687,7 +765,9 @@ void Run::write_checkpoint(int loop) {
       state::write_string(o, name);
       state::write<std::uint64_t>(o, size);
     }
-    archive_->save(o);
+    state::write<std::uint64_t>(o, archive_generation_);
+    state::write<std::uint64_t>(o, archive_bytes_saved_);
+    state::write<std::uint64_t>(o, archive_->size());
     state::write<std::uint64_t>(o, dataset_->size());
     auto blob = [&](auto& component) {
       std::string bytes;
@@ -701,31 +781,52 @@ void Run::write_checkpoint(int loop) {
     blob(*initial_);
     if (!o) throw Error("cannot serialise the checkpoint");
   }
-  // The dataset only grows, so each checkpoint appends the rows that are new since the last one.
-  const std::size_t P = shape_.param_count();
-  const std::size_t row_bytes = dataset_row_bytes(P);
-  if (dataset_bytes_saved_ == 0) {
-    job.dataset_rows.append(kDatasetMagic, sizeof(kDatasetMagic));
-    const std::uint64_t p64 = P;
-    job.dataset_rows.append(reinterpret_cast<const char*>(&p64), sizeof(p64));
-  }
-  job.dataset_offset = dataset_bytes_saved_;
-  job.dataset_rows.reserve(job.dataset_rows.size() + (dataset_->size() - dataset_rows_saved_) * row_bytes);
-  for (std::size_t k = dataset_rows_saved_; k < dataset_->size(); ++k) {
-    const std::int64_t cell = dataset_->cells()[k];
-    const std::int64_t row_loop = dataset_->loops()[k];
-    job.dataset_rows.append(reinterpret_cast<const char*>(&cell), sizeof(cell));
-    job.dataset_rows.append(reinterpret_cast<const char*>(&row_loop), sizeof(row_loop));
-    job.dataset_rows.append(reinterpret_cast<const char*>(dataset_->params().row(static_cast<Eigen::Index>(k)).data()),
-                            P * sizeof(double));
-  }
-  dataset_bytes_saved_ = job.dataset_offset + job.dataset_rows.size();
-  dataset_rows_saved_ = dataset_->size();
   checkpoint_writer_->submit(job);
 }
 
 void Run::finish_checkpoints() {
   if (checkpoint_writer_) checkpoint_writer_->wait();
+}
+
+void Run::load_archive(std::uint64_t generation, std::uint64_t bytes, std::uint64_t slots, bool remove_stale) {
+  const fs::path path = archive_log_path(generation);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw StateError(path.string() + " is missing");
+  char magic[sizeof(kArchiveLogMagic)];
+  std::uint64_t P = 0, dims = 0;
+  if (!in.read(magic, sizeof(magic)) || !std::equal(magic, magic + sizeof(magic), kArchiveLogMagic) ||
+      !in.read(reinterpret_cast<char*>(&P), sizeof(P)) || !in.read(reinterpret_cast<char*>(&dims), sizeof(dims)))
+    throw StateError(path.string() + " is not a qdrun archive state file");
+  if (P != shape_.param_count() || dims != archive_->descriptor_dims())
+    throw StateError(path.string() + " has another shape than this experiment");
+  const std::size_t rec = archive_record_bytes();
+  const std::uint64_t header = sizeof(kArchiveLogMagic) + 2 * sizeof(std::uint64_t);
+  if (bytes < header || (bytes - header) % rec != 0) throw StateError("the checkpoint's archive size is inconsistent");
+  *archive_ = Archive(archive_->cells(), P, dims);
+  std::vector<char> buf(rec);
+  for (std::uint64_t k = 0, n = (bytes - header) / rec; k < n; ++k) {
+    if (!in.read(buf.data(), static_cast<std::streamsize>(rec)))
+      throw StateError(path.string() + " is shorter than the checkpoint counts");
+    std::int64_t head[2];
+    double values[2];
+    std::memcpy(head, buf.data(), sizeof(head));
+    std::memcpy(values, buf.data() + sizeof(head), sizeof(values));
+    const char* desc = buf.data() + sizeof(head) + sizeof(values);
+    std::vector<double> d(dims), theta(P);
+    std::memcpy(d.data(), desc, dims * sizeof(double));
+    std::memcpy(theta.data(), desc + dims * sizeof(double), P * sizeof(double));
+    if (head[0] < 0) throw StateError(path.string() + " holds a negative slot");
+    archive_->restore(static_cast<std::size_t>(head[0]), head[1], theta.data(), d.data(), values[0], values[1]);
+  }
+  if (archive_->size() != slots) throw StateError(path.string() + " does not hold the checkpoint's elites");
+  archive_generation_ = generation;
+  archive_bytes_saved_ = bytes;
+  if (remove_stale) {  // generations of a compaction whose checkpoint never committed
+    for (const auto& e : fs::directory_iterator(dir_)) {
+      const std::string name = e.path().filename().string();
+      if (name.rfind("archive-state-", 0) == 0 && e.path() != path) fs::remove(e.path());
+    }
+  }
 }
 
 void Run::load_dataset(std::uint64_t rows) {
@@ -774,8 +875,11 @@ void Run::load_checkpoint(bool cut_logs) {
       std::string name = state::read_string(i);
       logs.emplace_back(std::move(name), state::read<std::uint64_t>(i));
     }
-    archive_->load(i);
+    const auto generation = state::read<std::uint64_t>(i);
+    const auto archive_bytes = state::read<std::uint64_t>(i);
+    const auto archive_slots = state::read<std::uint64_t>(i);
     const auto dataset_rows = state::read<std::uint64_t>(i);
+    load_archive(generation, archive_bytes, archive_slots, cut_logs);
     load_dataset(dataset_rows);
     auto blob = [&](auto& component, const char* what) {
       std::istringstream b(state::read_string(i), std::ios::binary);

@@ -103,6 +103,10 @@ class Run {
   void write_checkpoint(int loop);
   void load_checkpoint(bool cut_logs);
   void load_dataset(std::uint64_t rows);
+  void load_archive(std::uint64_t generation, std::uint64_t bytes, std::uint64_t slots, bool remove_stale);
+  std::filesystem::path archive_log_path(std::uint64_t generation) const;
+  std::size_t archive_record_bytes() const;
+  void append_archive_record(std::string& out, std::size_t slot) const;
   void finish_checkpoints();  // waits for the checkpoint in flight; rethrows its write error
   void write_snapshot(const std::filesystem::path& path) const;
   void write_provenance() const;
@@ -134,9 +138,12 @@ class Run {
   std::vector<std::uint64_t> seeds_;
   std::vector<Insertion> outcomes_;
 
-  // Checkpoints: written by a background thread; the dataset goes to an append-only file, of which
-  // the last submitted checkpoint covers the first dataset_rows_saved_ rows (dataset_bytes_saved_ bytes).
+  // Checkpoints: written by a background thread. The archive and the dataset go to append-only
+  // files; the last submitted checkpoint covers their first *_bytes_saved_ bytes.
   CheckpointWriter::Job checkpoint_job_;
+  std::vector<std::size_t> dirty_slots_;
+  std::uint64_t archive_generation_ = 0;
+  std::uint64_t archive_bytes_saved_ = 0;
   std::size_t dataset_rows_saved_ = 0;
   std::uint64_t dataset_bytes_saved_ = 0;
   std::unique_ptr<CheckpointWriter> checkpoint_writer_;
