@@ -178,18 +178,23 @@ int run_one(const Cli& cli, const std::string& command_line) {
 
 int replay_all(const Cli& cli);
 
+// Builds the run of an existing run directory from its own config.toml (for --replay, --latents).
+Run open_run_directory(const Cli& cli, const fs::path& dir, Registry& reg, int workers) {
+  if (!fs::exists(dir / "config.toml")) throw InputError(dir.string() + ": not a run directory (no config.toml)");
+  Document doc = Document::read(dir / "config.toml");
+  setup_registry(reg, cli, doc.plugin_paths());
+  RunOptions opt;
+  opt.directory = dir.string();
+  opt.workers = workers;
+  return Run(resolve(doc, reg), reg, std::move(opt));
+}
+
 int replay(const Cli& cli) {
   if (cli.all) return replay_all(cli);
   if (cli.cell < 0) throw InputError("--replay needs --cell N (an index from archive.csv)");
   const fs::path dir = cli.replay;
-  if (!fs::exists(dir / "config.toml")) throw InputError(cli.replay + ": not a run directory (no config.toml)");
-  Document doc = Document::read(dir / "config.toml");
   Registry reg;
-  setup_registry(reg, cli, doc.plugin_paths());
-  RunOptions opt;
-  opt.directory = cli.replay;
-  opt.workers = 1;
-  Run run(resolve(doc, reg), reg, std::move(opt));
+  Run run = open_run_directory(cli, dir, reg, 1);
   const fs::path svg = cli.svg.empty() ? dir / ("replay-cell-" + std::to_string(cli.cell) + ".svg") : fs::path(cli.svg);
   const Trace t = run.replay(cli.cell, svg);
   std::int64_t cell = -1;
@@ -205,14 +210,8 @@ int replay(const Cli& cli) {
 int replay_all(const Cli& cli) {
   if (cli.cell >= 0 || !cli.svg.empty()) throw InputError("--replay --all takes no --cell or --svg (see --traces)");
   const fs::path dir = cli.replay;
-  if (!fs::exists(dir / "config.toml")) throw InputError(cli.replay + ": not a run directory (no config.toml)");
-  Document doc = Document::read(dir / "config.toml");
   Registry reg;
-  setup_registry(reg, cli, doc.plugin_paths());
-  RunOptions opt;
-  opt.directory = cli.replay;
-  opt.workers = cli.workers;
-  Run run(resolve(doc, reg), reg, std::move(opt));
+  Run run = open_run_directory(cli, dir, reg, cli.workers);
   const fs::path csv = cli.traces.empty() ? dir / "traces.csv" : fs::path(cli.traces);
   const Run::ReplayAllResult r = run.replay_all(csv);
   std::printf("replayed %zu elites, %zu land in their stored cell\nwrote %s\n", r.elites, r.as_stored, csv.c_str());
@@ -224,14 +223,8 @@ int replay_all(const Cli& cli) {
 // unless FILE is there.
 int latents(const Cli& cli) {
   const fs::path dir = cli.latents;
-  if (!fs::exists(dir / "config.toml")) throw InputError(cli.latents + ": not a run directory (no config.toml)");
-  Document doc = Document::read(dir / "config.toml");
   Registry reg;
-  setup_registry(reg, cli, doc.plugin_paths());
-  RunOptions opt;
-  opt.directory = cli.latents;
-  opt.workers = 1;
-  Run run(resolve(doc, reg), reg, std::move(opt));
+  Run run = open_run_directory(cli, dir, reg, 1);
   run.open_for_inspection();
   const fs::path csv = cli.output.empty() ? dir / "latents.csv" : fs::path(cli.output);
   run.write_latents(csv);
