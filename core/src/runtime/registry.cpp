@@ -9,6 +9,7 @@
 #include <boost/dll/runtime_symbol_info.hpp>
 #include <boost/dll/shared_library.hpp>
 
+#include <dlfcn.h>
 #include <algorithm>
 #include <cstring>
 #include <set>
@@ -129,6 +130,11 @@ std::shared_ptr<LoadedPlugin> Registry::load(const fs::path& path) {
                         prior->plugin->path + " (first in the plugin search path wins)");
   }
 
+  // An accepted plugin is never unloaded, not even at exit: its dependencies (libgomp for the
+  // autoencoder) keep their static state, and no destructor of a plugin-made object can outlive its
+  // code. Promoting the loaded library to RTLD_NODELETE does that; the extra handle is never closed.
+  if (!::dlopen(path.c_str(), RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE))
+    throw PluginError(where + ": cannot pin the loaded plugin: " + ::dlerror());
   auto loaded = std::make_shared<LoadedPlugin>();
   loaded->library = lib;
   loaded->path = fs::weakly_canonical(path, ec).string();
