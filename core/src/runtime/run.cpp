@@ -139,8 +139,13 @@ Run::Run(Experiment experiment, const Registry& registry, RunOptions options)
                             toml_string(pi.plugin_version) + ", path = " + toml_string(cc->entry->plugin->path) + " }");
   }
 
-  const int workers = opt_.workers > 0 ? opt_.workers : (s.workers > 0 ? s.workers : hardware_workers());
-  evaluator_ = std::make_unique<Evaluator>(*env_, *desc_, shape_, workers);
+  EvaluatorSpec spec;
+  spec.workers = opt_.workers > 0 ? opt_.workers : (s.workers > 0 ? s.workers : hardware_workers());
+  spec.backend = opt_.backend.empty() ? s.backend : opt_.backend;
+  spec.capacity = static_cast<std::size_t>(std::max(s.batch, s.initial_samples));
+  spec.timeout_seconds = s.timeout_seconds;
+  spec.status_file = (dir_ / "status").string();
+  evaluator_ = make_evaluator(spec, *env_, *desc_, shape_);
   archive_ = std::make_unique<Archive>(grid.cells, shape_.param_count(), grid.shape.size());
   dataset_ = std::make_unique<Dataset>(shape_.param_count());
 }
@@ -196,6 +201,7 @@ void Run::write_provenance() const {
     << "cpu = " << toml_string(cpu_model()) << "\n"
     << "hardware_threads = " << hardware_workers() << "\n"
     << "workers = " << evaluator_->workers() << "\n"
+    << "backend = " << toml_string(evaluator_->backend()) << "\n"
     << "seed = " << ex_.settings.seed << "\n"
     << "started = " << toml_string(utc_now()) << "\n"
     << "resumed_at_loop = " << next_loop_ << "\n"
@@ -230,6 +236,10 @@ void Run::report(int loop, int iteration, bool loop_finished, const std::string&
   p.loop_finished = loop_finished;
   p.note = note;
   opt_.on_progress(p);
+}
+
+void Run::serve() {
+  evaluator_->serve();
 }
 
 bool Run::run() {
@@ -291,9 +301,8 @@ void Run::loop_zero() {
       ++invalid;
       continue;
     }
-    const auto r =
-        archive_->offer(ev.cells[i], off.theta.row(static_cast<Eigen::Index>(i)).data(),
-                        ev.descriptors.row(static_cast<Eigen::Index>(i)).data(), ev.traces[i].fitness, 0.0, false);
+    const auto r = archive_->offer(ev.cells[i], off.theta.row(static_cast<Eigen::Index>(i)).data(),
+                                   ev.descriptors.row(static_cast<Eigen::Index>(i)).data(), ev.fitness[i], 0.0, false);
     if (r == Insertion::kAdded) ++added;
   }
   std::vector<std::size_t> slots(archive_->size());
@@ -364,12 +373,12 @@ void Run::map_elites_loop(int loop) {
       bool replace = false;
       if (archive_->occupied(cell)) {
         if (s.insertion == "fitness")
-          replace = ev.traces[i].fitness > archive_->fitness(static_cast<std::size_t>(archive_->slot_of(cell)));
+          replace = ev.fitness[i] > archive_->fitness(static_cast<std::size_t>(archive_->slot_of(cell)));
         else
           replace = coin.uniform() < s.replace_probability;
       }
       const auto e = static_cast<Eigen::Index>(i);
-      outcomes[i] = archive_->offer(cell, off.theta.row(e).data(), ev.descriptors.row(e).data(), ev.traces[i].fitness,
+      outcomes[i] = archive_->offer(cell, off.theta.row(e).data(), ev.descriptors.row(e).data(), ev.fitness[i],
                                     LD ? recn[e] : 0.0, replace);
       if (outcomes[i] == Insertion::kAdded) ++fb.added;
       if (outcomes[i] == Insertion::kReplaced) ++fb.replaced;
