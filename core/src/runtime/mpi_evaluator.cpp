@@ -119,22 +119,25 @@ double now_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-// Polls with a sleep that grows from nothing to 1 ms: cheap while a batch streams, and idle ranks
-// do not spin on a core.
+// Polls: spins for 200 us (rank 0 between batches usually answers within that), then sleeps
+// 50 us doubling to 1 ms, so idle ranks leave the cores to rank 0's training.
 class Backoff {
  public:
-  void reset() { us_ = 0; }
+  void reset() {
+    start_ = -1;
+    us_ = 50;
+  }
   void pause() {
-    if (us_ == 0) {
-      us_ = 1;
-      return;
-    }
+    const double now = now_seconds();
+    if (start_ < 0) start_ = now;
+    if (now - start_ < 200e-6) return;
     std::this_thread::sleep_for(std::chrono::microseconds(us_));
     us_ = std::min(us_ * 2, 1000);
   }
 
  private:
-  int us_ = 0;
+  double start_ = -1;
+  int us_ = 50;
 };
 
 void check(int rc, const char* what) {
@@ -209,10 +212,16 @@ class MpiEvaluator final : public Evaluator {
     const auto size = static_cast<std::size_t>(g_size);
     const std::size_t chunk = std::max<std::size_t>(1, n / (size * 8));
     const std::size_t chunks = (n + chunk - 1) / chunk;
-    std::uint64_t hdr[2] = {n, chunk};
-    broadcast(hdr, 2, MPI_UINT64_T, timeout_);
-    broadcast(const_cast<double*>(params.data()), n * P_, MPI_DOUBLE, timeout_);
-    broadcast(const_cast<std::uint64_t*>(seeds.data()), n, MPI_UINT64_T, timeout_);
+    // The broadcasts stay in flight while work is handed out: a worker joins the chunk protocol
+    // when its copy has arrived, and one that never does is named by the per-worker timeout below.
+    hdr_[0] = n;
+    hdr_[1] = chunk;
+    MPI_Request bcast[3];
+    check(MPI_Ibcast(hdr_, 2, MPI_UINT64_T, 0, MPI_COMM_WORLD, &bcast[0]), "MPI broadcast");
+    check(MPI_Ibcast(const_cast<double*>(params.data()), as_count(n * P_), MPI_DOUBLE, 0, MPI_COMM_WORLD, &bcast[1]),
+          "MPI broadcast");
+    check(MPI_Ibcast(const_cast<std::uint64_t*>(seeds.data()), as_count(n), MPI_UINT64_T, 0, MPI_COMM_WORLD, &bcast[2]),
+          "MPI broadcast");
 
     const std::size_t workers = size - 1;
     std::vector<std::vector<double>> inbox(workers, std::vector<double>(1 + chunk * width_));
@@ -237,7 +246,8 @@ class MpiEvaluator final : public Evaluator {
     std::vector<int> ready(workers);
     auto service = [&] {
       if (workers == 0) return false;
-      int count = 0;
+      int count = 0, sent = 0;
+      check(MPI_Testall(3, bcast, &sent, MPI_STATUSES_IGNORE), "MPI broadcast");
       check(MPI_Testsome(static_cast<int>(workers), recv.data(), &count, ready.data(), MPI_STATUSES_IGNORE),
             "MPI test");
       for (int j = 0; j < count; ++j) {
@@ -292,6 +302,8 @@ class MpiEvaluator final : public Evaluator {
         backoff.pause();
       }
     }
+    // Every worker acknowledged, so every broadcast has arrived: this returns at once.
+    check(MPI_Waitall(3, bcast, MPI_STATUSES_IGNORE), "MPI broadcast");
   }
 
   void serve() override {
@@ -367,6 +379,7 @@ class MpiEvaluator final : public Evaluator {
   std::size_t P_, dims_, width_;
   double timeout_;
   bool stopped_ = false;
+  std::uint64_t hdr_[2] = {0, 0};  // broadcast buffer, alive while the batch runs
   struct sigaction previous_ {};
 };
 
