@@ -2,8 +2,13 @@
 # Benchmarks (never part of the tests). Builds Release in build/ and prints one line per
 # measurement. Run on a quiet machine; every ratio is measured within one process run.
 #   scripts/bench.sh            framework overhead and environment throughput
+#   scripts/bench.sh parallel   threads vs processes vs MPI ranks (scripts/bench-parallel.sh)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+if [ "${1:-}" = parallel ]; then
+  shift
+  exec scripts/bench-parallel.sh "$@"
+fi
 scripts/install-deps.sh
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DQD_BUILD_BENCHMARKS=ON -DQD_ONLY_DIRS= -DQD_EXCLUDE_DIRS= > /dev/null
 cmake --build build --parallel > /dev/null

@@ -238,6 +238,9 @@ int qdrun_main(int argc, char** argv) {
     po::variables_map vm;
     po::store(po::command_line_parser(argc, argv).options(all).positional(pos).run(), vm);
     po::notify(vm);
+    // Under mpirun only rank 0 answers questions (help, list, describe, replay); the others wait.
+    const bool runs = !vm.count("help") && !cli.version && !cli.list && cli.describe.empty() && cli.replay.empty();
+    if (mpi_rank() > 0 && !runs) return kExitOk;
     if (vm.count("help")) {
       std::cout << visible << "\nPlugins are searched in --plugin-path, QD_PLUGIN_PATH, [plugins] path,\n"
                 << "<prefix>/lib/qd/plugins and the build tree. See README.md.\n";
