@@ -317,12 +317,19 @@ int main(int argc, char** argv) {
     if (code != kExitOk) {
       ::sleep(2);
       std::fprintf(stderr, "qdrun (MPI rank %d): %s", mpi_rank(), err.c_str());
-      mpi_abort(code);
+      std::fflush(stderr);
+      // Not MPI_Finalize: it would wait for ranks that fail the same way; an exit without it makes
+      // mpirun end the job.
+      std::_Exit(code);
     }
     mpi_stop();
     return code;
   }
   const int code = qdrun_main(argc, argv);
+  if (code != kExitOk && mpi_size() > 1) {
+    std::fflush(nullptr);
+    std::_Exit(code);  // see above: mpirun ends the job, worker ranks included
+  }
   mpi_stop();
   return code;
 }
