@@ -49,6 +49,17 @@ inline std::size_t record_width(std::size_t dims) {
 }
 void unpack_records(const double* records, std::size_t begin, std::size_t end, std::size_t dims, Evaluations& out);
 
+// Guided self-scheduling for the process and MPI backends: a share of the rows still unclaimed,
+// at most `largest`, at least 1, so chunks shrink towards the end of a batch and no worker is left
+// running a long last chunk while the others idle.
+inline std::size_t guided_chunk(std::size_t remaining, std::size_t workers, std::size_t largest) {
+  const std::size_t share = remaining / (4 * workers);
+  return share < 1 ? 1 : (share > largest ? largest : share);
+}
+inline std::size_t largest_chunk(std::size_t n, std::size_t workers) {
+  return n / (workers * 8) < 1 ? 1 : n / (workers * 8);
+}
+
 // Evaluates rows of a parameter block into packed records; owns its trace scratch (one per worker).
 class RowEvaluator {
  public:

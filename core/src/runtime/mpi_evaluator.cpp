@@ -2,9 +2,10 @@
 // builds the same experiment and serves rank 0 (Run::serve).
 //
 // Per batch: rank 0 broadcasts the parameter rows and episode seeds (non-blocking collectives), then
-// hands out chunk indices on demand, keeping two in flight per worker so a worker never waits for
-// rank 0, which evaluates one row at a time and answers requests between rows (dynamic load
-// balancing; only 8-byte indices and compact result records travel after the broadcast). Results go
+// hands out row ranges on demand (guided: they shrink towards the end of the batch), keeping two in
+// flight per worker so a worker never waits for rank 0, which evaluates one row at a time and
+// answers between rows (dynamic load balancing; only ranges and compact result records travel
+// after the broadcast). Results go
 // into per-offspring slots, so nothing depends on which rank evaluated what.
 //
 // Faults: OpenMPI's mpirun reacts to a dead rank by sending SIGTERM to the others (SIGKILL 1 s
@@ -210,12 +211,11 @@ class MpiEvaluator final : public Evaluator {
     out.reset(n, dims_);
     if (n == 0) return;
     const auto size = static_cast<std::size_t>(g_size);
-    const std::size_t chunk = std::max<std::size_t>(1, n / (size * 8));
-    const std::size_t chunks = (n + chunk - 1) / chunk;
+    const std::size_t largest = largest_chunk(n, size);
     // The broadcasts stay in flight while work is handed out: a worker joins the chunk protocol
     // when its copy has arrived, and one that never does is named by the per-worker timeout below.
     hdr_[0] = n;
-    hdr_[1] = chunk;
+    hdr_[1] = largest;
     MPI_Request bcast[3];
     check(MPI_Ibcast(hdr_, 2, MPI_UINT64_T, 0, MPI_COMM_WORLD, &bcast[0]), "MPI broadcast");
     check(MPI_Ibcast(const_cast<double*>(params.data()), as_count(n * P_), MPI_DOUBLE, 0, MPI_COMM_WORLD, &bcast[1]),
@@ -224,7 +224,7 @@ class MpiEvaluator final : public Evaluator {
           "MPI broadcast");
 
     const std::size_t workers = size - 1;
-    std::vector<std::vector<double>> inbox(workers, std::vector<double>(1 + chunk * width_));
+    std::vector<std::vector<double>> inbox(workers, std::vector<double>(2 + largest * width_));
     std::vector<MPI_Request> recv(workers, MPI_REQUEST_NULL);
     std::vector<int> in_flight(workers, 0);
     std::vector<double> last_heard(workers, now_seconds());
@@ -235,13 +235,15 @@ class MpiEvaluator final : public Evaluator {
             "MPI receive");
     };
     auto hand_out = [&](std::size_t w) {
-      const long long k = static_cast<long long>(next++);
-      check(MPI_Send(&k, 1, MPI_LONG_LONG, static_cast<int>(w + 1), kTagWork, MPI_COMM_WORLD), "MPI send");
+      const std::size_t count = guided_chunk(n - next, size, largest);
+      const long long range[2] = {static_cast<long long>(next), static_cast<long long>(count)};
+      check(MPI_Send(range, 2, MPI_LONG_LONG, static_cast<int>(w + 1), kTagWork, MPI_COMM_WORLD), "MPI send");
+      next += count;
       ++in_flight[w];
     };
     for (std::size_t w = 0; w < workers; ++w) {
       post(w);
-      for (int q = 0; q < 2 && next < chunks; ++q) hand_out(w);
+      for (int q = 0; q < 2 && next < n; ++q) hand_out(w);
     }
     std::vector<int> ready(workers);
     auto service = [&] {
@@ -252,29 +254,27 @@ class MpiEvaluator final : public Evaluator {
             "MPI test");
       for (int j = 0; j < count; ++j) {
         const auto w = static_cast<std::size_t>(ready[j]);
-        const auto k = static_cast<std::size_t>(inbox[w][0]);
-        const std::size_t begin = k * chunk, end = std::min(n, begin + chunk);
-        unpack_records(inbox[w].data() + 1, begin, end, dims_, out);
+        const auto begin = static_cast<std::size_t>(inbox[w][0]);
+        const std::size_t end = begin + static_cast<std::size_t>(inbox[w][1]);
+        unpack_records(inbox[w].data() + 2, begin, end, dims_, out);
         rows_done += end - begin;
         --in_flight[w];
         last_heard[w] = now_seconds();
         post(w);
-        if (next < chunks) hand_out(w);
+        if (next < n) hand_out(w);
       }
       return count > 0 && count != MPI_UNDEFINED;
     };
     std::vector<double> mine(width_);
     Backoff backoff;
     while (rows_done < n) {
-      if (next < chunks) {
-        const std::size_t k = next++;
-        const std::size_t begin = k * chunk, end = std::min(n, begin + chunk);
-        for (std::size_t i = begin; i < end; ++i) {
-          own_.run(params.row(static_cast<Eigen::Index>(i)).data(), seeds.data() + i, 1, mine.data());
-          unpack_records(mine.data(), i, i + 1, dims_, out);
-          ++rows_done;
-          service();
-        }
+      if (next < n) {
+        // Rank 0 takes single rows: no messages to save, and it fills the gaps at the end.
+        const std::size_t i = next++;
+        own_.run(params.row(static_cast<Eigen::Index>(i)).data(), seeds.data() + i, 1, mine.data());
+        unpack_records(mine.data(), i, i + 1, dims_, out);
+        ++rows_done;
+        service();
         continue;
       }
       if (service()) {
@@ -288,8 +288,8 @@ class MpiEvaluator final : public Evaluator {
     }
     // End of batch: every worker acknowledges, which also consumes the receive still posted for it.
     for (std::size_t w = 0; w < workers; ++w) {
-      const long long end = -1;
-      check(MPI_Send(&end, 1, MPI_LONG_LONG, static_cast<int>(w + 1), kTagWork, MPI_COMM_WORLD), "MPI send");
+      const long long end[2] = {0, 0};
+      check(MPI_Send(end, 2, MPI_LONG_LONG, static_cast<int>(w + 1), kTagWork, MPI_COMM_WORLD), "MPI send");
     }
     const double t0 = now_seconds();
     for (std::size_t w = 0; w < workers; ++w) {
@@ -313,7 +313,7 @@ class MpiEvaluator final : public Evaluator {
     for (;;) {
       std::uint64_t hdr[2] = {0, 0};
       broadcast(hdr, 2, MPI_UINT64_T, 0);
-      const std::size_t n = hdr[0], chunk = hdr[1];
+      const std::size_t n = hdr[0], largest = hdr[1];
       if (n == 0) {
         stopped_ = true;
         return;
@@ -322,26 +322,28 @@ class MpiEvaluator final : public Evaluator {
       seeds.resize(n);
       broadcast(params.data(), n * P_, MPI_DOUBLE, 0);
       broadcast(seeds.data(), n, MPI_UINT64_T, 0);
-      outbox.resize(1 + chunk * width_);
+      outbox.resize(2 + largest * width_);
       Backoff backoff;
       for (;;) {
-        long long k = 0;
+        long long range[2] = {0, 0};
         MPI_Request req = MPI_REQUEST_NULL;
-        check(MPI_Irecv(&k, 1, MPI_LONG_LONG, 0, kTagWork, MPI_COMM_WORLD, &req), "MPI receive");
+        check(MPI_Irecv(range, 2, MPI_LONG_LONG, 0, kTagWork, MPI_COMM_WORLD, &req), "MPI receive");
         backoff.reset();
         for (int flag = 0;;) {
           check(MPI_Test(&req, &flag, MPI_STATUS_IGNORE), "MPI test");
           if (flag) break;
           backoff.pause();
         }
-        outbox[0] = static_cast<double>(k);
-        if (k < 0) {
-          check(MPI_Send(outbox.data(), 1, MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD), "MPI send");
+        const auto begin = static_cast<std::size_t>(range[0]), count = static_cast<std::size_t>(range[1]);
+        outbox[0] = static_cast<double>(begin);
+        outbox[1] = static_cast<double>(count);
+        if (count == 0) {  // end of batch: acknowledge
+          check(MPI_Send(outbox.data(), 2, MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD), "MPI send");
           break;
         }
-        const std::size_t begin = static_cast<std::size_t>(k) * chunk, end = std::min(n, begin + chunk);
-        own_.run(params.data() + begin * P_, seeds.data() + begin, end - begin, outbox.data() + 1);
-        check(MPI_Send(outbox.data(), as_count(1 + (end - begin) * width_), MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD),
+        QD_CHECK(begin + count <= n && count <= largest, "a row range inside the batch");
+        own_.run(params.data() + begin * P_, seeds.data() + begin, count, outbox.data() + 2);
+        check(MPI_Send(outbox.data(), as_count(2 + count * width_), MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD),
               "MPI send");
       }
     }

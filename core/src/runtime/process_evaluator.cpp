@@ -42,9 +42,9 @@ std::string describe_exit(int status) {
 }  // namespace
 
 struct ProcessEvaluator::Control {
-  std::atomic<std::uint64_t> next{0};      // next chunk to claim
+  std::atomic<std::uint64_t> next{0};      // first row not yet claimed
   std::atomic<std::uint64_t> finished{0};  // rows done in this batch (progress, for the timeout)
-  std::uint64_t rows = 0, chunk = 1, chunks = 0;
+  std::uint64_t rows = 0, workers = 1, largest = 1;
   std::atomic<int> error_owner{-1};
   char error[kErrorBytes] = {0};
 };
@@ -150,13 +150,16 @@ void ProcessEvaluator::child_main(int w, int fd) {
 }
 
 void ProcessEvaluator::work(int, RowEvaluator& ev) {
+  const std::size_t rows = ctl_->rows;
   for (;;) {
-    const std::uint64_t k = ctl_->next.fetch_add(1);
-    if (k >= ctl_->chunks) return;
-    const std::size_t begin = k * ctl_->chunk;
-    const std::size_t end = std::min<std::size_t>(ctl_->rows, begin + ctl_->chunk);
-    ev.run(params_ + begin * P_, seeds_ + begin, end - begin, records_ + begin * width_);
-    ctl_->finished.fetch_add(end - begin);
+    std::uint64_t begin = ctl_->next.load();
+    std::size_t count = 0;
+    do {
+      if (begin >= rows) return;
+      count = guided_chunk(rows - begin, ctl_->workers, ctl_->largest);
+    } while (!ctl_->next.compare_exchange_weak(begin, begin + count));
+    ev.run(params_ + begin * P_, seeds_ + begin, count, records_ + begin * width_);
+    ctl_->finished.fetch_add(count);
   }
 }
 
@@ -179,8 +182,8 @@ void ProcessEvaluator::evaluate(const Matrix& params, const std::vector<std::uin
   std::copy(params.data(), params.data() + n * P_, params_);
   std::copy(seeds.begin(), seeds.end(), seeds_);
   ctl_->rows = n;
-  ctl_->chunk = std::max<std::size_t>(1, n / (static_cast<std::size_t>(workers()) * 8));
-  ctl_->chunks = (n + ctl_->chunk - 1) / ctl_->chunk;
+  ctl_->workers = static_cast<std::size_t>(workers());
+  ctl_->largest = largest_chunk(n, ctl_->workers);
   ctl_->finished.store(0);
   ctl_->next.store(0);
   std::vector<std::size_t> pending;
