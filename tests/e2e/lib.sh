@@ -34,6 +34,15 @@ export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_
        OMPI_MCA_btl_tcp_if_include=lo OMPI_MCA_oob_tcp_if_include=lo
 mpi() { local n=$1; shift; mpirun -q -np "$n" "$@" < /dev/null; }
 
+# Under AddressSanitizer (scripts/test.sh --sanitize), OpenMPI's start-up allocations only match
+# the suppressions in tests/lsan-openmpi.supp with full stacks, and with its components kept loaded
+# so their frames resolve. Called by the MPI tests only: slow unwinding would slow down the rest.
+mpi_sanitizer_env() {
+  if [ -n "${ASAN_OPTIONS:-}" ]; then
+    export ASAN_OPTIONS="$ASAN_OPTIONS:fast_unwind_on_malloc=0" OMPI_MCA_mca_base_component_disable_dlclose=1
+  fi
+}
+
 # Waits until FILE exists while PID runs; fails if PID ends first (the run was too short to test).
 wait_for_file() {
   local file=$1 pid=$2

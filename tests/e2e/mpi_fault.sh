@@ -4,6 +4,7 @@
 # the last checkpoint intact; --resume with 2 ranks then equals an uninterrupted serial run.
 #   mpi_fault.sh QDRUN EXP OUT kill|hang [--set ...]
 source "$(dirname "$0")/lib.sh"
+mpi_sanitizer_env
 qdrun=$1 exp=$2 out=$3 mode=$4; shift 4
 rm -rf "$out"
 mkdir -p "$out"
