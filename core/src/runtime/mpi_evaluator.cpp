@@ -212,8 +212,9 @@ class MpiEvaluator final : public Evaluator {
     if (n == 0) return;
     const auto size = static_cast<std::size_t>(g_size);
     const std::size_t largest = largest_chunk(n, size);
-    // The broadcasts stay in flight while work is handed out: a worker joins the chunk protocol
-    // when its copy has arrived, and one that never does is named by the per-worker timeout below.
+    // Rank 0 drives the broadcasts to completion before it evaluates (a large broadcast moves in
+    // segments, each needing rank 0 inside MPI). If a worker never joins, they stay in flight
+    // after timeout_seconds and the per-worker timeout below names that worker.
     hdr_[0] = n;
     hdr_[1] = largest;
     MPI_Request bcast[3];
@@ -223,11 +224,15 @@ class MpiEvaluator final : public Evaluator {
     check(MPI_Ibcast(const_cast<std::uint64_t*>(seeds.data()), as_count(n), MPI_UINT64_T, 0, MPI_COMM_WORLD, &bcast[2]),
           "MPI broadcast");
 
+    const double started = now_seconds();
+    for (int done = 0; !done && (timeout_ <= 0 || now_seconds() - started < timeout_);)
+      check(MPI_Testall(3, bcast, &done, MPI_STATUSES_IGNORE), "MPI broadcast");
+
     const std::size_t workers = size - 1;
     std::vector<std::vector<double>> inbox(workers, std::vector<double>(2 + largest * width_));
     std::vector<MPI_Request> recv(workers, MPI_REQUEST_NULL);
     std::vector<int> in_flight(workers, 0);
-    std::vector<double> last_heard(workers, now_seconds());
+    std::vector<double> last_heard(workers, started);
     std::size_t next = 0, rows_done = 0;
     auto post = [&](std::size_t w) {
       check(MPI_Irecv(inbox[w].data(), as_count(inbox[w].size()), MPI_DOUBLE, static_cast<int>(w + 1), kTagResult,
@@ -320,8 +325,9 @@ class MpiEvaluator final : public Evaluator {
       }
       params.resize(n * P_);
       seeds.resize(n);
-      broadcast(params.data(), n * P_, MPI_DOUBLE, 0);
-      broadcast(seeds.data(), n, MPI_UINT64_T, 0);
+      // The data follows the header at once: spin, each segment needs this rank inside MPI.
+      broadcast(params.data(), n * P_, MPI_DOUBLE, 0, true);
+      broadcast(seeds.data(), n, MPI_UINT64_T, 0, true);
       outbox.resize(2 + largest * width_);
       Backoff backoff;
       for (;;) {
@@ -351,7 +357,7 @@ class MpiEvaluator final : public Evaluator {
 
  private:
   // A non-blocking broadcast from rank 0, polled; timeout 0 waits forever.
-  void broadcast(void* data, std::size_t count, MPI_Datatype type, double timeout) {
+  void broadcast(void* data, std::size_t count, MPI_Datatype type, double timeout, bool spin = false) {
     MPI_Request req = MPI_REQUEST_NULL;
     check(MPI_Ibcast(data, as_count(count), type, 0, MPI_COMM_WORLD, &req), "MPI broadcast");
     const double t0 = now_seconds();
@@ -365,7 +371,7 @@ class MpiEvaluator final : public Evaluator {
                             std::to_string(static_cast<long long>(timeout)) +
                             " s ([evaluation] timeout_seconds); it is hung");
       }
-      backoff.pause();
+      if (!spin) backoff.pause();
     }
   }
 
