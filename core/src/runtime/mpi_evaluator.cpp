@@ -121,22 +121,26 @@ double now_seconds() {
 }
 
 // Polls: spins for 200 us (rank 0 between batches usually answers within that), then sleeps
-// 50 us doubling to 1 ms, so idle ranks leave the cores to rank 0's training.
+// 50 us doubling to `longest`, so idle ranks leave the cores to rank 0's training. Transfers in
+// progress use a short `longest`: each segment of a broadcast needs both sides inside MPI, and a
+// spinning rank would steal the core of a peer that shares it.
 class Backoff {
  public:
+  explicit Backoff(int longest_us = 1000) : longest_(longest_us) {}
   void reset() {
     start_ = -1;
-    us_ = 50;
+    us_ = std::min(50, longest_);
   }
   void pause() {
     const double now = now_seconds();
     if (start_ < 0) start_ = now;
     if (now - start_ < 200e-6) return;
     std::this_thread::sleep_for(std::chrono::microseconds(us_));
-    us_ = std::min(us_ * 2, 1000);
+    us_ = std::min(us_ * 2, longest_);
   }
 
  private:
+  int longest_;
   double start_ = -1;
   int us_ = 50;
 };
@@ -225,7 +229,8 @@ class MpiEvaluator final : public Evaluator {
           "MPI broadcast");
 
     const double started = now_seconds();
-    for (int done = 0; !done && (timeout_ <= 0 || now_seconds() - started < timeout_);)
+    Backoff transfer(10);
+    for (int done = 0; !done && (timeout_ <= 0 || now_seconds() - started < timeout_); transfer.pause())
       check(MPI_Testall(3, bcast, &done, MPI_STATUSES_IGNORE), "MPI broadcast");
 
     const std::size_t workers = size - 1;
@@ -325,7 +330,7 @@ class MpiEvaluator final : public Evaluator {
       }
       params.resize(n * P_);
       seeds.resize(n);
-      // The data follows the header at once: spin, each segment needs this rank inside MPI.
+      // The data follows the header at once: poll closely, each segment needs this rank in MPI.
       broadcast(params.data(), n * P_, MPI_DOUBLE, 0, true);
       broadcast(seeds.data(), n, MPI_UINT64_T, 0, true);
       outbox.resize(2 + largest * width_);
@@ -357,11 +362,11 @@ class MpiEvaluator final : public Evaluator {
 
  private:
   // A non-blocking broadcast from rank 0, polled; timeout 0 waits forever.
-  void broadcast(void* data, std::size_t count, MPI_Datatype type, double timeout, bool spin = false) {
+  void broadcast(void* data, std::size_t count, MPI_Datatype type, double timeout, bool transfer = false) {
     MPI_Request req = MPI_REQUEST_NULL;
     check(MPI_Ibcast(data, as_count(count), type, 0, MPI_COMM_WORLD, &req), "MPI broadcast");
     const double t0 = now_seconds();
-    Backoff backoff;
+    Backoff backoff(transfer ? 10 : 1000);
     for (int flag = 0;;) {
       check(MPI_Test(&req, &flag, MPI_STATUS_IGNORE), "MPI test");
       if (flag) return;
@@ -371,7 +376,7 @@ class MpiEvaluator final : public Evaluator {
                             std::to_string(static_cast<long long>(timeout)) +
                             " s ([evaluation] timeout_seconds); it is hung");
       }
-      if (!spin) backoff.pause();
+      backoff.pause();
     }
   }
 
