@@ -4,8 +4,13 @@
 # alternate (--repeat times) and the fastest of each side is compared, because noise from other
 # processes only ever adds time. Run on a quiet machine; `nice -n -10 scripts/bench.sh` helps.
 #   scripts/bench.sh            framework overhead and environment throughput
+#   scripts/bench.sh parallel   threads vs processes vs MPI ranks (scripts/bench-parallel.sh)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+if [ "${1:-}" = parallel ]; then
+  shift
+  exec scripts/bench-parallel.sh "$@"
+fi
 scripts/install-deps.sh
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DQD_BUILD_BENCHMARKS=ON -DQD_ONLY_DIRS= -DQD_EXCLUDE_DIRS= > /dev/null
 cmake --build build --parallel > /dev/null

@@ -26,13 +26,13 @@ using namespace qd::runtime;
 
 namespace {
 
-constexpr int kExitOk = 0, kExitFailure = 1, kExitBadInput = 2;
+constexpr int kExitOk = 0, kExitFailure = 1, kExitBadInput = 2, kExitWorkerFailure = 3;
 
 struct Cli {
   std::vector<std::string> experiments;
   std::vector<std::string> sets;
   std::vector<std::string> plugin_paths;
-  std::string output, resume, describe, replay, svg;
+  std::string output, resume, describe, replay, svg, backend;
   long long cell = -1;
   long long seed = -1;
   int workers = 0;
@@ -113,7 +113,7 @@ int describe(const Registry& reg, const std::string& name) {
 // Keys that may change when a run is resumed: budget and output only, never the algorithm.
 bool resumable_override(const std::string& assignment) {
   const std::string key = assignment.substr(0, assignment.find('='));
-  return key == "experiment.loops" || key == "evaluation.workers" || key == "output.snapshot_every";
+  return key == "experiment.loops" || key.rfind("evaluation.", 0) == 0 || key == "output.snapshot_every";
 }
 
 int run_one(const Cli& cli, const std::string& command_line) {
@@ -125,9 +125,8 @@ int run_one(const Cli& cli, const std::string& command_line) {
     doc = Document::read(cfg);
     for (const auto& s : cli.sets) {
       if (!resumable_override(s))
-        throw InputError(
-            "--set " + s +
-            ": only experiment.loops, evaluation.workers and output.snapshot_every may change when resuming");
+        throw InputError("--set " + s +
+                         ": only experiment.loops, evaluation.* and output.snapshot_every may change when resuming");
       doc.apply_override(s);
     }
     if (cli.seed >= 0 || !cli.output.empty()) throw InputError("--seed and --output cannot be combined with --resume");
@@ -142,11 +141,19 @@ int run_one(const Cli& cli, const std::string& command_line) {
   setup_registry(reg, cli, doc.plugin_paths());
   Experiment ex = resolve(doc, reg);
   opt.workers = cli.workers;
+  opt.backend = cli.backend;
   opt.stop_after_loop = cli.stop_after_loop;
   opt.command_line = command_line;
   const bool terminal = ::isatty(STDERR_FILENO) != 0;
   app::ProgressPrinter printer(cli.quiet, terminal, ex.settings.name + "/seed-" + std::to_string(ex.settings.seed));
   opt.on_progress = [&](const Progress& p) { printer(p); };
+  if (mpi_rank() > 0) {
+    // An MPI worker rank: same experiment, no files, no output; it serves rank 0 until stopped.
+    opt.on_progress = nullptr;
+    Run worker(std::move(ex), reg, std::move(opt));
+    worker.serve();
+    return kExitOk;
+  }
   Run run(std::move(ex), reg, std::move(opt));
   if (!cli.resume.empty())
     run.open_for_resume();
@@ -158,19 +165,19 @@ int run_one(const Cli& cli, const std::string& command_line) {
     if (!cli.quiet)
       std::fprintf(stderr, "%s: %s (%zu elites, coverage %.4f)\n", finished ? "finished" : "stopped",
                    run.directory().c_str(), run.archive().size(), run.archive().coverage());
-  } catch (...) {
+  } catch (const std::exception& e) {
     printer.finish();
     std::error_code ec;
     if (fs::exists(run.directory(), ec)) {
-      try {
-        std::FILE* f = std::fopen((run.directory() / "status").c_str(), "w");
-        if (f) {
-          std::fputs("failed (the last checkpoint is intact; fix the cause and --resume)\n", f);
-          std::fclose(f);
-        }
-      } catch (...) {
+      std::FILE* f = std::fopen((run.directory() / "status").c_str(), "w");
+      if (f) {
+        std::fprintf(f, "failed: %s (the last checkpoint is intact; fix the cause and --resume)\n", e.what());
+        std::fclose(f);
       }
     }
+    if (dynamic_cast<const WorkerFailure*>(&e))
+      throw WorkerFailure(std::string(e.what()) + "; the last checkpoint is intact: qdrun --resume " +
+                          run.directory().string());
     throw;
   }
   return kExitOk;
@@ -255,9 +262,7 @@ int sweep(const Cli& cli) {
       o, [&](Registry& reg, const std::vector<std::string>& from_file) { setup_registry(reg, cli, from_file); });
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int qdrun_main(int argc, char** argv) {
   // Representations train with OpenMP between evaluation phases; spinning idle OpenMP threads would
   // steal the cores from the evaluation workers. A user's own setting wins.
   ::setenv("OMP_WAIT_POLICY", "passive", 0);
@@ -271,7 +276,8 @@ int main(int argc, char** argv) {
     ("seed", po::value(&cli.seed), "override experiment.seed")
     ("set", po::value(&cli.sets)->composing(), "override a setting: --set mutator.sigma=0.05 (repeatable)")
     ("output,o", po::value(&cli.output), "root output directory (overrides output.dir)")
-    ("workers,j", po::value(&cli.workers), "evaluation threads (default: all cores; results do not depend on it)")
+    ("workers,j", po::value(&cli.workers), "local evaluation workers (default: all cores; results do not depend on it)")
+    ("backend", po::value(&cli.backend), "evaluation backend: auto (default), processes, threads or mpi (overrides [evaluation] backend)")
     ("resume", po::value(&cli.resume), "continue the run in this run directory from its last checkpoint")
     ("quiet,q", po::bool_switch(&cli.quiet), "print nothing but errors")
     ("list", po::bool_switch(&cli.list), "list every available component with its plugin library and version")
@@ -307,6 +313,10 @@ int main(int argc, char** argv) {
     po::variables_map vm;
     po::store(po::command_line_parser(argc, argv).options(all).positional(pos).run(), vm);
     po::notify(vm);
+    // Under mpirun only rank 0 answers questions (help, list, describe, replay); the others wait.
+    const bool runs = !vm.count("help") && !cli.version && !cli.list && cli.describe.empty() && cli.replay.empty() &&
+                      cli.latents.empty();
+    if (mpi_rank() > 0 && !runs) return kExitOk;
     if (vm.count("help")) {
       std::cout << visible << "\nPlugins are searched in --plugin-path, QD_PLUGIN_PATH, [plugins] path,\n"
                 << "<prefix>/lib/qd/plugins and the build tree. See README.md.\n";
@@ -339,8 +349,65 @@ int main(int argc, char** argv) {
   } catch (const InputError& e) {
     std::fprintf(stderr, "qdrun: error: %s\n", e.what());
     return kExitBadInput;
+  } catch (const WorkerFailure& e) {
+    std::fprintf(stderr, "qdrun: error: %s\n", e.what());
+    std::fflush(stderr);
+    // Under MPI a hung or dead rank would never join MPI_Finalize: take the job down.
+    if (mpi_size() > 1) mpi_abort(kExitWorkerFailure);
+    return kExitWorkerFailure;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "qdrun: internal failure: %s\n", e.what());
     return kExitFailure;
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    mpi_start(&argc, &argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "qdrun: internal failure: %s\n", e.what());
+    return kExitFailure;
+  }
+  if (mpi_rank() > 0) {
+    // Worker ranks stay quiet: rank 0 reports. An error only a worker has (a plugin missing on its
+    // node) is printed after a grace period in which a shared error ends the job from rank 0.
+    std::string err;
+    int code = kExitOk;
+    {
+      std::fflush(stdout);
+      const int saved = ::dup(STDERR_FILENO);
+      std::FILE* capture = std::tmpfile();
+      if (capture) ::dup2(::fileno(capture), STDERR_FILENO);
+      code = qdrun_main(argc, argv);
+      std::fflush(stderr);
+      if (capture) {
+        ::dup2(saved, STDERR_FILENO);
+        std::rewind(capture);
+        char buf[4096];
+        std::size_t got = 0;
+        while ((got = std::fread(buf, 1, sizeof(buf), capture)) > 0) err.append(buf, got);
+        std::fclose(capture);
+      }
+      ::close(saved);
+    }
+    if (code != kExitOk) {
+      ::sleep(2);
+      std::fprintf(stderr, "qdrun (MPI rank %d): %s", mpi_rank(), err.c_str());
+      std::fflush(stderr);
+      // Not MPI_Finalize: it would wait for ranks that fail the same way; an exit without it makes
+      // mpirun end the job.
+      std::_Exit(code);
+    }
+    mpi_stop();
+    return code;
+  }
+  const int code = qdrun_main(argc, argv);
+  if (code != kExitOk && mpi_size() > 1) {
+    std::fflush(nullptr);
+    std::_Exit(code);  // see above: mpirun ends the job, worker ranks included
+  }
+  mpi_stop();
+  return code;
 }

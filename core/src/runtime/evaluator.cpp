@@ -1,8 +1,11 @@
 #include "runtime/evaluator.hpp"
 
+#include "runtime/process_evaluator.hpp"
+
 #include <qd/errors.hpp>
 
 #include <algorithm>
+#include <cstdlib>
 
 namespace qd::runtime {
 
@@ -69,15 +72,63 @@ void WorkerPool::work() {
   }
 }
 
-Evaluator::Evaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers)
+void Evaluations::reset(std::size_t n, std::size_t dims) {
+  status.assign(n, EvalStatus::kOk);
+  steps.assign(n, 0);
+  fitness.assign(n, 0.0);
+  cells.assign(n, -1);
+  descriptors.setZero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(dims));
+}
+
+void unpack_records(const double* records, std::size_t begin, std::size_t end, std::size_t dims, Evaluations& out) {
+  const std::size_t w = record_width(dims);
+  for (std::size_t i = begin; i < end; ++i) {
+    const double* r = records + (i - begin) * w;
+    out.status[i] = static_cast<EvalStatus>(static_cast<int>(r[0]));
+    out.steps[i] = static_cast<std::int32_t>(r[1]);
+    out.fitness[i] = r[2];
+    out.cells[i] = static_cast<std::int64_t>(r[3]);
+    for (std::size_t d = 0; d < dims; ++d)
+      out.descriptors(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(d)) = r[kRecordHead + d];
+  }
+}
+
+RowEvaluator::RowEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape)
+    : env_(env), desc_(desc), shape_(shape), dims_(desc.grid().shape.size()) {}
+
+void RowEvaluator::run(const double* params, const std::uint64_t* seeds, std::size_t rows, double* records) {
+  const auto P = static_cast<Eigen::Index>(shape_.param_count());
+  // Rollouts take a Matrix; copying a chunk's rows costs far less than its episodes.
+  block_.resize(static_cast<Eigen::Index>(rows), P);
+  std::copy(params, params + rows * static_cast<std::size_t>(P), block_.data());
+  if (traces_.size() < rows) traces_.resize(rows);
+  for (std::size_t i = 0; i < rows; ++i) traces_[i].clear();
+  RolloutBatch b{&shape_, &block_, seeds, 0, rows};
+  env_.rollout(b, traces_.data());
+  const std::size_t w = record_width(dims_);
+  for (std::size_t i = 0; i < rows; ++i) {
+    double* r = records + i * w;
+    const Trace& t = traces_[i];
+    std::int64_t cell = -1;
+    std::fill(r + kRecordHead, r + w, 0.0);
+    if (t.status == EvalStatus::kOk) desc_.describe(&t, 1, &cell, r + kRecordHead);
+    r[0] = static_cast<double>(static_cast<int>(t.status));
+    r[1] = static_cast<double>(t.steps);
+    r[2] = t.fitness;
+    r[3] = static_cast<double>(cell);
+  }
+}
+
+Evaluator::~Evaluator() = default;
+
+ThreadEvaluator::ThreadEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers)
     : env_(env), desc_(desc), shape_(shape), dims_(desc.grid().shape.size()), pool_(workers) {}
 
-void Evaluator::evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, Evaluations& out) {
+void ThreadEvaluator::evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, Evaluations& out) {
   const auto n = static_cast<std::size_t>(params.rows());
   QD_CHECK(seeds.size() == n, "one episode seed per row");
-  out.traces.resize(n);
-  out.cells.assign(n, -1);
-  out.descriptors.setZero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(dims_));
+  out.reset(n, dims_);
+  if (traces_.size() < n) traces_.resize(n);
   // Chunks keep dispatch at one virtual call per chunk while leaving enough chunks for dynamic
   // load balancing; with one worker the whole batch is one call.
   const std::size_t workers = static_cast<std::size_t>(pool_.size());
@@ -90,12 +141,69 @@ void Evaluator::evaluate(const Matrix& params, const std::vector<std::uint64_t>&
     b.episode_seeds = seeds.data();
     b.begin = c * chunk;
     b.end = std::min(n, b.begin + chunk);
-    for (std::size_t i = b.begin; i < b.end; ++i) out.traces[i].clear();
-    env_.rollout(b, out.traces.data());
-    for (std::size_t i = b.begin; i < b.end; ++i)
-      if (out.traces[i].status == EvalStatus::kOk)
-        desc_.describe(&out.traces[i], 1, &out.cells[i], out.descriptors.row(static_cast<Eigen::Index>(i)).data());
+    for (std::size_t i = b.begin; i < b.end; ++i) traces_[i].clear();
+    env_.rollout(b, traces_.data());
+    for (std::size_t i = b.begin; i < b.end; ++i) {
+      const Trace& t = traces_[i];
+      out.status[i] = t.status;
+      out.steps[i] = t.steps;
+      out.fitness[i] = t.fitness;
+      if (t.status == EvalStatus::kOk)
+        desc_.describe(&t, 1, &out.cells[i], out.descriptors.row(static_cast<Eigen::Index>(i)).data());
+    }
   });
 }
+
+std::string resolve_backend(const std::string& requested, int workers) {
+  if (requested != "auto") return requested;
+  if (mpi_active()) return "mpi";
+  return workers > 1 ? "processes" : "threads";
+}
+
+std::unique_ptr<Evaluator> make_evaluator(const EvaluatorSpec& spec, const Environment& env, const Descriptor& desc,
+                                          const PolicyShape& shape) {
+  const std::string backend = resolve_backend(spec.backend, spec.workers);
+  if (backend == "mpi") {
+    if (!mpi_built())
+      throw InputError(
+          "[evaluation] backend = \"mpi\": this qdrun was built without MPI (configure with -DQD_WITH_MPI=ON)");
+    if (!mpi_active())
+      throw InputError("[evaluation] backend = \"mpi\" needs qdrun to be started by mpirun (mpirun -np N qdrun ...)");
+    return make_mpi_evaluator(spec, env, desc, shape);
+  }
+  if (mpi_active() && mpi_size() > 1)
+    throw InputError("[evaluation] backend = \"" + backend + "\" under mpirun with " + std::to_string(mpi_size()) +
+                     " ranks: every rank would run the whole experiment; use backend = \"mpi\" (or \"auto\")");
+  if (backend == "processes" && spec.workers > 1)
+    return std::make_unique<ProcessEvaluator>(env, desc, shape, spec.workers, spec.capacity, spec.timeout_seconds);
+  return std::make_unique<ThreadEvaluator>(env, desc, shape, spec.workers);
+}
+
+#ifndef QD_WITH_MPI
+bool mpi_built() noexcept {
+  return false;
+}
+bool mpi_launched() noexcept {
+  return false;
+}
+void mpi_start(int*, char***) {}
+bool mpi_active() noexcept {
+  return false;
+}
+int mpi_rank() noexcept {
+  return 0;
+}
+int mpi_size() noexcept {
+  return 1;
+}
+void mpi_stop() noexcept {}
+void mpi_abort(int code) noexcept {
+  std::_Exit(code);
+}
+std::unique_ptr<Evaluator> make_mpi_evaluator(const EvaluatorSpec&, const Environment&, const Descriptor&,
+                                              const PolicyShape&) {
+  return nullptr;
+}
+#endif
 
 }  // namespace qd::runtime

@@ -150,7 +150,12 @@ const ParamSpec kOutputParams[] = {
     param_bool("snapshot_parameters", "true", "include policy parameters in archive snapshots"),
 };
 const ParamSpec kEvaluationParams[] = {
-    param_int("workers", "0", 0, 4096, "evaluation threads (0 = all cores); results do not depend on it"),
+    param_int("workers", "0", 0, 4096, "local evaluation workers (0 = all cores); results do not depend on it"),
+    param_string("backend", "\"auto\"", "auto|threads|processes|mpi",
+                 "auto = mpi under mpirun, else processes with more than one worker; results do not depend on it"),
+    param_float("timeout_seconds", "300", 0.0, 1e9,
+                "a worker process or MPI rank that makes no progress this long in a batch is hung: the run "
+                "stops (0 = wait forever; the threads backend cannot time out)"),
 };
 
 struct ComponentTable {
@@ -441,6 +446,8 @@ Experiment resolve(const Document& doc, const Registry& registry) {
   s.snapshot_every = static_cast<int>(o.get_int("snapshot_every"));
   s.snapshot_parameters = o.get_bool("snapshot_parameters");
   s.workers = static_cast<int>(w.get_int("workers"));
+  s.backend = w.get_string("backend");
+  s.timeout_seconds = w.get_float("timeout_seconds");
 
   toml::table resolved;
   auto put_core = [&](const char* name, const Config& cfg, const ParamSpec* specs, std::size_t n) {

@@ -29,7 +29,9 @@ struct ExperimentSettings {
   std::string output_dir;
   int snapshot_every = 0;
   bool snapshot_parameters = true;
-  int workers = 0;  // 0 = all cores
+  int workers = 0;               // 0 = all cores
+  std::string backend = "auto";  // auto | threads | processes | mpi
+  double timeout_seconds = 0;
 };
 
 // One component table after validation.

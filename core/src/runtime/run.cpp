@@ -150,8 +150,13 @@ Run::Run(Experiment experiment, const Registry& registry, RunOptions options)
                             toml_string(pi.plugin_version) + ", path = " + toml_string(cc->entry->plugin->path) + " }");
   }
 
-  const int workers = opt_.workers > 0 ? opt_.workers : (s.workers > 0 ? s.workers : hardware_workers());
-  evaluator_ = std::make_unique<Evaluator>(*env_, *desc_, shape_, workers);
+  EvaluatorSpec spec;
+  spec.workers = opt_.workers > 0 ? opt_.workers : (s.workers > 0 ? s.workers : hardware_workers());
+  spec.backend = opt_.backend.empty() ? s.backend : opt_.backend;
+  spec.capacity = static_cast<std::size_t>(std::max(s.batch, s.initial_samples));
+  spec.timeout_seconds = s.timeout_seconds;
+  spec.status_file = (dir_ / "status").string();
+  evaluator_ = make_evaluator(spec, *env_, *desc_, shape_);
   archive_ = std::make_unique<Archive>(grid.cells, shape_.param_count(), grid.shape.size());
   dataset_ = std::make_unique<Dataset>(shape_.param_count());
 }
@@ -214,6 +219,7 @@ void Run::write_provenance() const {
     << "cpu = " << toml_string(cpu_model()) << "\n"
     << "hardware_threads = " << hardware_workers() << "\n"
     << "workers = " << evaluator_->workers() << "\n"
+    << "backend = " << toml_string(evaluator_->backend()) << "\n"
     << "seed = " << ex_.settings.seed << "\n"
     << "started = " << toml_string(utc_now()) << "\n"
     << "resumed_at_loop = " << next_loop_ << "\n"
@@ -248,6 +254,10 @@ void Run::report(int loop, int iteration, bool loop_finished, const std::string&
   p.loop_finished = loop_finished;
   p.note = note;
   opt_.on_progress(p);
+}
+
+void Run::serve() {
+  evaluator_->serve();
 }
 
 bool Run::run() {
@@ -311,9 +321,8 @@ void Run::loop_zero() {
       ++invalid;
       continue;
     }
-    const auto r =
-        archive_->offer(ev.cells[i], off.theta.row(static_cast<Eigen::Index>(i)).data(),
-                        ev.descriptors.row(static_cast<Eigen::Index>(i)).data(), ev.traces[i].fitness, 0.0, false);
+    const auto r = archive_->offer(ev.cells[i], off.theta.row(static_cast<Eigen::Index>(i)).data(),
+                                   ev.descriptors.row(static_cast<Eigen::Index>(i)).data(), ev.fitness[i], 0.0, false);
     if (r == Insertion::kAdded) ++added;
   }
   std::vector<std::size_t> slots(archive_->size());
@@ -384,12 +393,12 @@ void Run::map_elites_loop(int loop) {
       bool replace = false;
       if (archive_->occupied(cell)) {
         if (s.insertion == "fitness")
-          replace = ev.traces[i].fitness > archive_->fitness(static_cast<std::size_t>(archive_->slot_of(cell)));
+          replace = ev.fitness[i] > archive_->fitness(static_cast<std::size_t>(archive_->slot_of(cell)));
         else
           replace = coin.uniform() < s.replace_probability;
       }
       const auto e = static_cast<Eigen::Index>(i);
-      outcomes[i] = archive_->offer(cell, off.theta.row(e).data(), ev.descriptors.row(e).data(), ev.traces[i].fitness,
+      outcomes[i] = archive_->offer(cell, off.theta.row(e).data(), ev.descriptors.row(e).data(), ev.fitness[i],
                                     LD ? recn[e] : 0.0, replace);
       if (outcomes[i] == Insertion::kAdded) ++fb.added;
       if (outcomes[i] == Insertion::kReplaced) ++fb.replaced;
@@ -603,24 +612,33 @@ Trace Run::replay(std::int64_t cell, const fs::path& svg) const {
 Run::ReplayAllResult Run::replay_all(const fs::path& csv) {
   const StoredElites elites = read_archive_solutions(dir_ / "archive.csv", shape_.param_count());
   const std::size_t n = elites.cells.size();
-  // Seed 0 for every episode, as --replay: the environments of the paper do not use it.
+  // Seed 0 for every episode, as --replay: the environments of the paper do not use it. The
+  // evaluators return compact results, so the traces are rolled out here, on local threads.
   const std::vector<std::uint64_t> seeds(n, 0);
-  Evaluations ev;
-  evaluator_->evaluate(elites.theta, seeds, ev);
+  std::vector<Trace> traces(n);
+  std::vector<std::int64_t> landed(n, -1);
+  std::vector<double> values(n * archive_->descriptor_dims());
+  WorkerPool pool(std::max(1, evaluator_->workers()));
+  pool.run(n, [&](std::size_t i) {
+    RolloutBatch b{&shape_, &elites.theta, seeds.data(), i, i + 1};
+    env_->rollout(b, traces.data());
+    if (traces[i].status == EvalStatus::kOk)
+      desc_->describe(&traces[i], 1, &landed[i], values.data() + i * archive_->descriptor_dims());
+  });
   int cols = 0;
-  for (const Trace& t : ev.traces) cols = std::max(cols, t.main.cols);
+  for (const Trace& t : traces) cols = std::max(cols, t.main.cols);
   std::string out = "cell,landed,status,row";
   for (int c = 0; c < cols; ++c) out += ",main_" + std::to_string(c);
   out += '\n';
   ReplayAllResult r;
   r.elites = n;
   for (std::size_t i = 0; i < n; ++i) {
-    const Trace& t = ev.traces[i];
-    if (ev.cells[i] == elites.cells[i]) ++r.as_stored;
+    const Trace& t = traces[i];
+    if (landed[i] == elites.cells[i]) ++r.as_stored;
     for (std::size_t row = 0; row < t.main.rows(); ++row) {
       append_int(out, elites.cells[i]);
       out += ',';
-      append_int(out, ev.cells[i]);
+      append_int(out, landed[i]);
       out += ',';
       out += to_string(t.status);
       out += ',';

@@ -41,6 +41,7 @@ void tune_allocator();
 
 struct RunOptions {
   int workers = 0;           // 0 = from the experiment (then all cores)
+  std::string backend;       // empty = from the experiment
   int stop_after_loop = -1;  // stop cleanly after this loop's checkpoint (-1 = run to the end)
   std::string directory;     // run directory; empty = <output>/<name>/seed-<seed>
   std::string command_line;
@@ -68,6 +69,9 @@ class Run {
 
   // Runs until the configured number of loops (or stop_after_loop). Returns true when finished.
   bool run();
+  // MPI worker ranks instead of run(): evaluate what rank 0 sends until it stops the job.
+  void serve();
+  const Evaluator& evaluator() const { return *evaluator_; }
 
   // Re-runs the elite of `cell` from the run directory's archive.csv and draws it to `svg`.
   // Returns the replayed trace (its status tells whether it still evaluates as stored).

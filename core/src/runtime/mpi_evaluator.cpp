@@ -1,0 +1,448 @@
+// MPI backend (built with QD_WITH_MPI): rank 0 runs the loop and evaluates too; every other rank
+// builds the same experiment and serves rank 0 (Run::serve).
+//
+// Per batch: rank 0 broadcasts the parameter rows and episode seeds (non-blocking collectives), then
+// hands out row ranges on demand (guided: they shrink towards the end of the batch), keeping two in
+// flight per worker so a worker never waits for rank 0, which evaluates one row at a time and
+// answers between rows (dynamic load balancing; only ranges and compact result records travel
+// after the broadcast). Results go
+// into per-offspring slots, so nothing depends on which rank evaluated what.
+//
+// Faults: OpenMPI's mpirun reacts to a dead rank by sending SIGTERM to the others (SIGKILL 1 s
+// later). Rank 0 catches it, finds the dead worker among the pids gathered at start-up, writes the
+// run's status file ("failed ...", the checkpoint is untouched) and exits with one line. A worker
+// that makes no progress for [evaluation] timeout_seconds is reported as hung and the job aborted.
+// Waiting ranks poll with a growing sleep, so idle workers leave the cores to rank 0's training.
+#include "runtime/evaluator.hpp"
+
+#include <mpi.h>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <unistd.h>
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <climits>
+#include <cstdlib>
+#include <cstring>
+#include <thread>
+
+namespace qd::runtime {
+
+namespace {
+
+constexpr int kTagWork = 1, kTagResult = 2;
+constexpr int kExitWorkerFailure = 3;
+constexpr std::size_t kHostBytes = 64;
+
+bool g_initialised = false;
+int g_rank = 0, g_size = 1;
+
+struct PeerInfo {
+  std::int64_t pid = 0;
+  char host[kHostBytes] = {0};
+};
+
+// Read by the SIGTERM handler of rank 0: plain arrays, filled before the handler is installed.
+std::vector<PeerInfo> g_peers;
+char g_status_file[4096] = {0};
+char g_status_tmp[4200] = {0};
+char g_run_dir[4096] = {0};
+
+// Async-signal-safe helpers for the handler.
+void put(char* buf, std::size_t cap, std::size_t& len, const char* s) {
+  while (*s && len + 1 < cap) buf[len++] = *s++;
+  buf[len] = 0;
+}
+void put_int(char* buf, std::size_t cap, std::size_t& len, long long v) {
+  char digits[24];
+  int n = 0;
+  if (v < 0) {
+    put(buf, cap, len, "-");
+    v = -v;
+  }
+  do {
+    digits[n++] = static_cast<char>('0' + v % 10);
+    v /= 10;
+  } while (v > 0 && n < 23);
+  char out[24];
+  for (int i = 0; i < n; ++i) out[i] = digits[n - 1 - i];
+  out[n] = 0;
+  put(buf, cap, len, out);
+}
+
+void on_sigterm(int) {
+  int dead = -1;
+  for (std::size_t r = 1; r < g_peers.size(); ++r)
+    if (std::strncmp(g_peers[r].host, g_peers[0].host, kHostBytes) == 0 &&
+        ::kill(static_cast<pid_t>(g_peers[r].pid), 0) != 0 && errno == ESRCH) {
+      dead = static_cast<int>(r);
+      break;
+    }
+  char what[512];
+  std::size_t wl = 0;
+  if (dead > 0) {
+    put(what, sizeof(what), wl, "MPI worker rank ");
+    put_int(what, sizeof(what), wl, dead);
+    put(what, sizeof(what), wl, " (pid ");
+    put_int(what, sizeof(what), wl, g_peers[static_cast<std::size_t>(dead)].pid);
+    put(what, sizeof(what), wl, " on ");
+    put(what, sizeof(what), wl, g_peers[static_cast<std::size_t>(dead)].host);
+    put(what, sizeof(what), wl, ") died and mpirun ended the job");
+  } else {
+    put(what, sizeof(what), wl,
+        "terminated by SIGTERM (mpirun does this when a rank on another host dies, or the job was cancelled)");
+  }
+  char status[1024];
+  std::size_t sl = 0;
+  put(status, sizeof(status), sl, "failed: ");
+  put(status, sizeof(status), sl, what);
+  put(status, sizeof(status), sl, " (the last checkpoint is intact; fix the cause and --resume)\n");
+  const int fd = ::open(g_status_tmp, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  if (fd >= 0) {
+    if (::write(fd, status, sl) == static_cast<ssize_t>(sl)) ::rename(g_status_tmp, g_status_file);
+    ::close(fd);
+  }
+  char line[1024 + 4096];
+  std::size_t ll = 0;
+  put(line, sizeof(line), ll, "qdrun: error: ");
+  put(line, sizeof(line), ll, what);
+  put(line, sizeof(line), ll, "; the last checkpoint is intact: qdrun --resume ");
+  put(line, sizeof(line), ll, g_run_dir);
+  put(line, sizeof(line), ll, "\n");
+  if (::write(STDERR_FILENO, line, ll) < 0) {
+  }
+  ::_exit(kExitWorkerFailure);
+}
+
+double now_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+// Polls: spins for 200 us (rank 0 between batches usually answers within that), then sleeps
+// 50 us doubling to `longest`, so idle ranks leave the cores to rank 0's training. Transfers in
+// progress use a short `longest`: each segment of a broadcast needs both sides inside MPI, and a
+// spinning rank would steal the core of a peer that shares it.
+class Backoff {
+ public:
+  explicit Backoff(int longest_us = 1000) : longest_(longest_us) {}
+  void reset() {
+    start_ = -1;
+    us_ = std::min(50, longest_);
+  }
+  void pause() {
+    const double now = now_seconds();
+    if (start_ < 0) start_ = now;
+    if (now - start_ < 200e-6) return;
+    std::this_thread::sleep_for(std::chrono::microseconds(us_));
+    us_ = std::min(us_ * 2, longest_);
+  }
+
+ private:
+  int longest_;
+  double start_ = -1;
+  int us_ = 50;
+};
+
+void check(int rc, const char* what) {
+  if (rc == MPI_SUCCESS) return;
+  char text[MPI_MAX_ERROR_STRING];
+  int len = 0;
+  MPI_Error_string(rc, text, &len);
+  throw WorkerFailure(std::string(what) + ": " + std::string(text, static_cast<std::size_t>(len)));
+}
+
+int as_count(std::size_t n) {
+  if (n > static_cast<std::size_t>(INT_MAX)) throw Error("MPI message of " + std::to_string(n) + " elements");
+  return static_cast<int>(n);
+}
+
+class MpiEvaluator final : public Evaluator {
+ public:
+  MpiEvaluator(const EvaluatorSpec& spec, const Environment& env, const Descriptor& desc, const PolicyShape& shape)
+      : own_(env, desc, shape),
+        P_(shape.param_count()),
+        dims_(desc.grid().shape.size()),
+        width_(record_width(dims_)),
+        timeout_(spec.timeout_seconds) {
+    PeerInfo me;
+    me.pid = ::getpid();
+    ::gethostname(me.host, kHostBytes - 1);
+    std::vector<PeerInfo> all(static_cast<std::size_t>(g_rank == 0 ? g_size : 0));
+    check(MPI_Gather(&me, sizeof(PeerInfo), MPI_BYTE, all.data(), sizeof(PeerInfo), MPI_BYTE, 0, MPI_COMM_WORLD),
+          "MPI start-up handshake");
+    if (g_rank == 0) {
+      g_peers = std::move(all);
+      const std::string dir = spec.status_file.substr(0, spec.status_file.rfind('/'));
+      std::snprintf(g_status_file, sizeof(g_status_file), "%s", spec.status_file.c_str());
+      std::snprintf(g_status_tmp, sizeof(g_status_tmp), "%s.tmp", spec.status_file.c_str());
+      std::snprintf(g_run_dir, sizeof(g_run_dir), "%s", dir.c_str());
+      struct sigaction sa {};
+      sa.sa_handler = on_sigterm;
+      sigemptyset(&sa.sa_mask);
+      ::sigaction(SIGTERM, &sa, &previous_);
+    } else {
+      // mpirun sends SIGTERM to every rank when one dies; workers stay until its SIGKILL, so the
+      // only dead worker rank 0 finds is the one that failed.
+      struct sigaction sa {};
+      sa.sa_handler = SIG_IGN;
+      sigemptyset(&sa.sa_mask);
+      ::sigaction(SIGTERM, &sa, &previous_);
+    }
+  }
+
+  ~MpiEvaluator() override {
+    if (g_rank == 0 && !stopped_) {
+      // Tell the workers to leave serve(); bounded, since a hung worker never joins the broadcast.
+      try {
+        std::uint64_t hdr[2] = {0, 0};
+        broadcast(hdr, 2, MPI_UINT64_T, 5.0);
+      } catch (...) {
+      }
+    }
+    ::sigaction(SIGTERM, &previous_, nullptr);
+  }
+
+  int workers() const noexcept override { return g_size; }
+  const char* backend() const noexcept override { return "mpi"; }
+
+  void evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, Evaluations& out) override {
+    const auto n = static_cast<std::size_t>(params.rows());
+    QD_CHECK(seeds.size() == n, "one episode seed per row");
+    QD_CHECK(g_rank == 0, "only rank 0 runs the loop");
+    if (stopped_) throw WorkerFailure("the MPI workers were stopped after an earlier failure");
+    out.reset(n, dims_);
+    if (n == 0) return;
+    const auto size = static_cast<std::size_t>(g_size);
+    const std::size_t largest = largest_chunk(n, size);
+    // Rank 0 drives the broadcasts to completion before it evaluates (a large broadcast moves in
+    // segments, each needing rank 0 inside MPI). If a worker never joins, they stay in flight
+    // after timeout_seconds and the per-worker timeout below names that worker.
+    hdr_[0] = n;
+    hdr_[1] = largest;
+    MPI_Request bcast[3];
+    check(MPI_Ibcast(hdr_, 2, MPI_UINT64_T, 0, MPI_COMM_WORLD, &bcast[0]), "MPI broadcast");
+    check(MPI_Ibcast(const_cast<double*>(params.data()), as_count(n * P_), MPI_DOUBLE, 0, MPI_COMM_WORLD, &bcast[1]),
+          "MPI broadcast");
+    check(MPI_Ibcast(const_cast<std::uint64_t*>(seeds.data()), as_count(n), MPI_UINT64_T, 0, MPI_COMM_WORLD, &bcast[2]),
+          "MPI broadcast");
+
+    const double started = now_seconds();
+    Backoff transfer(10);
+    for (int done = 0; !done && (timeout_ <= 0 || now_seconds() - started < timeout_); transfer.pause())
+      check(MPI_Testall(3, bcast, &done, MPI_STATUSES_IGNORE), "MPI broadcast");
+
+    const std::size_t workers = size - 1;
+    std::vector<std::vector<double>> inbox(workers, std::vector<double>(2 + largest * width_));
+    std::vector<MPI_Request> recv(workers, MPI_REQUEST_NULL);
+    std::vector<int> in_flight(workers, 0);
+    std::vector<double> last_heard(workers, started);
+    std::size_t next = 0, rows_done = 0;
+    auto post = [&](std::size_t w) {
+      check(MPI_Irecv(inbox[w].data(), as_count(inbox[w].size()), MPI_DOUBLE, static_cast<int>(w + 1), kTagResult,
+                      MPI_COMM_WORLD, &recv[w]),
+            "MPI receive");
+    };
+    auto hand_out = [&](std::size_t w) {
+      const std::size_t count = guided_chunk(n - next, size, largest);
+      const long long range[2] = {static_cast<long long>(next), static_cast<long long>(count)};
+      check(MPI_Send(range, 2, MPI_LONG_LONG, static_cast<int>(w + 1), kTagWork, MPI_COMM_WORLD), "MPI send");
+      next += count;
+      ++in_flight[w];
+    };
+    for (std::size_t w = 0; w < workers; ++w) {
+      post(w);
+      for (int q = 0; q < 2 && next < n; ++q) hand_out(w);
+    }
+    std::vector<int> ready(workers);
+    auto service = [&] {
+      if (workers == 0) return false;
+      int count = 0, sent = 0;
+      check(MPI_Testall(3, bcast, &sent, MPI_STATUSES_IGNORE), "MPI broadcast");
+      check(MPI_Testsome(static_cast<int>(workers), recv.data(), &count, ready.data(), MPI_STATUSES_IGNORE),
+            "MPI test");
+      for (int j = 0; j < count; ++j) {
+        const auto w = static_cast<std::size_t>(ready[j]);
+        const auto begin = static_cast<std::size_t>(inbox[w][0]);
+        const std::size_t end = begin + static_cast<std::size_t>(inbox[w][1]);
+        unpack_records(inbox[w].data() + 2, begin, end, dims_, out);
+        rows_done += end - begin;
+        --in_flight[w];
+        last_heard[w] = now_seconds();
+        post(w);
+        if (next < n) hand_out(w);
+      }
+      return count > 0 && count != MPI_UNDEFINED;
+    };
+    std::vector<double> mine(width_);
+    Backoff backoff;
+    while (rows_done < n) {
+      if (next < n) {
+        // Rank 0 takes single rows: no messages to save, and it fills the gaps at the end.
+        const std::size_t i = next++;
+        own_.run(params.row(static_cast<Eigen::Index>(i)).data(), seeds.data() + i, 1, mine.data());
+        unpack_records(mine.data(), i, i + 1, dims_, out);
+        ++rows_done;
+        service();
+        continue;
+      }
+      if (service()) {
+        backoff.reset();
+        continue;
+      }
+      const double now = now_seconds();
+      for (std::size_t w = 0; w < workers; ++w)
+        if (in_flight[w] > 0 && timeout_ > 0 && now - last_heard[w] > timeout_) hung(static_cast<int>(w + 1));
+      backoff.pause();
+    }
+    // End of batch: every worker acknowledges, which also consumes the receive still posted for it.
+    for (std::size_t w = 0; w < workers; ++w) {
+      const long long end[2] = {0, 0};
+      check(MPI_Send(end, 2, MPI_LONG_LONG, static_cast<int>(w + 1), kTagWork, MPI_COMM_WORLD), "MPI send");
+    }
+    const double t0 = now_seconds();
+    for (std::size_t w = 0; w < workers; ++w) {
+      backoff.reset();
+      for (;;) {
+        int flag = 0;
+        check(MPI_Test(&recv[w], &flag, MPI_STATUS_IGNORE), "MPI test");
+        if (flag) break;
+        if (timeout_ > 0 && now_seconds() - t0 > timeout_) hung(static_cast<int>(w + 1));
+        backoff.pause();
+      }
+    }
+    // Every worker acknowledged, so every broadcast has arrived: this returns at once.
+    check(MPI_Waitall(3, bcast, MPI_STATUSES_IGNORE), "MPI broadcast");
+  }
+
+  void serve() override {
+    if (g_rank == 0) return;
+    std::vector<double> params, outbox;
+    std::vector<std::uint64_t> seeds;
+    for (;;) {
+      std::uint64_t hdr[2] = {0, 0};
+      broadcast(hdr, 2, MPI_UINT64_T, 0);
+      const std::size_t n = hdr[0], largest = hdr[1];
+      if (n == 0) {
+        stopped_ = true;
+        return;
+      }
+      params.resize(n * P_);
+      seeds.resize(n);
+      // The data follows the header at once: poll closely, each segment needs this rank in MPI.
+      broadcast(params.data(), n * P_, MPI_DOUBLE, 0, true);
+      broadcast(seeds.data(), n, MPI_UINT64_T, 0, true);
+      outbox.resize(2 + largest * width_);
+      Backoff backoff;
+      for (;;) {
+        long long range[2] = {0, 0};
+        MPI_Request req = MPI_REQUEST_NULL;
+        check(MPI_Irecv(range, 2, MPI_LONG_LONG, 0, kTagWork, MPI_COMM_WORLD, &req), "MPI receive");
+        backoff.reset();
+        for (int flag = 0;;) {
+          check(MPI_Test(&req, &flag, MPI_STATUS_IGNORE), "MPI test");
+          if (flag) break;
+          backoff.pause();
+        }
+        const auto begin = static_cast<std::size_t>(range[0]), count = static_cast<std::size_t>(range[1]);
+        outbox[0] = static_cast<double>(begin);
+        outbox[1] = static_cast<double>(count);
+        if (count == 0) {  // end of batch: acknowledge
+          check(MPI_Send(outbox.data(), 2, MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD), "MPI send");
+          break;
+        }
+        QD_CHECK(begin + count <= n && count <= largest, "a row range inside the batch");
+        own_.run(params.data() + begin * P_, seeds.data() + begin, count, outbox.data() + 2);
+        check(MPI_Send(outbox.data(), as_count(2 + count * width_), MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD),
+              "MPI send");
+      }
+    }
+  }
+
+ private:
+  // A non-blocking broadcast from rank 0, polled; timeout 0 waits forever.
+  void broadcast(void* data, std::size_t count, MPI_Datatype type, double timeout, bool transfer = false) {
+    MPI_Request req = MPI_REQUEST_NULL;
+    check(MPI_Ibcast(data, as_count(count), type, 0, MPI_COMM_WORLD, &req), "MPI broadcast");
+    const double t0 = now_seconds();
+    Backoff backoff(transfer ? 10 : 1000);
+    for (int flag = 0;;) {
+      check(MPI_Test(&req, &flag, MPI_STATUS_IGNORE), "MPI test");
+      if (flag) return;
+      if (timeout > 0 && now_seconds() - t0 > timeout) {
+        stopped_ = true;
+        throw WorkerFailure("an MPI worker rank did not join the batch broadcast for " +
+                            std::to_string(static_cast<long long>(timeout)) +
+                            " s ([evaluation] timeout_seconds); it is hung");
+      }
+      backoff.pause();
+    }
+  }
+
+  [[noreturn]] void hung(int rank) {
+    stopped_ = true;
+    const auto& p = g_peers.at(static_cast<std::size_t>(rank));
+    throw WorkerFailure("MPI worker rank " + std::to_string(rank) + " (pid " + std::to_string(p.pid) + " on " + p.host +
+                        ") made no progress for " + std::to_string(static_cast<long long>(timeout_)) +
+                        " s ([evaluation] timeout_seconds); it is hung or far too slow");
+  }
+
+  RowEvaluator own_;
+  std::size_t P_, dims_, width_;
+  double timeout_;
+  bool stopped_ = false;
+  std::uint64_t hdr_[2] = {0, 0};  // broadcast buffer, alive while the batch runs
+  struct sigaction previous_ {};
+};
+
+}  // namespace
+
+bool mpi_built() noexcept {
+  return true;
+}
+
+bool mpi_launched() noexcept {
+  for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", "PMI_SIZE"})
+    if (std::getenv(v)) return true;
+  return false;
+}
+
+void mpi_start(int* argc, char*** argv) {
+  if (!mpi_launched() || g_initialised) return;
+  int provided = 0;
+  // Funneled: representations may train with OpenMP threads, but only the main thread calls MPI.
+  if (MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) throw Error("MPI_Init_thread failed");
+  g_initialised = true;
+  MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN);
+  MPI_Comm_rank(MPI_COMM_WORLD, &g_rank);
+  MPI_Comm_size(MPI_COMM_WORLD, &g_size);
+}
+
+bool mpi_active() noexcept {
+  return g_initialised;
+}
+int mpi_rank() noexcept {
+  return g_rank;
+}
+int mpi_size() noexcept {
+  return g_size;
+}
+
+void mpi_stop() noexcept {
+  int finalized = 0;
+  MPI_Finalized(&finalized);
+  if (g_initialised && !finalized) MPI_Finalize();
+}
+
+void mpi_abort(int code) noexcept {
+  if (g_initialised) MPI_Abort(MPI_COMM_WORLD, code);
+  std::_Exit(code);
+}
+
+std::unique_ptr<Evaluator> make_mpi_evaluator(const EvaluatorSpec& spec, const Environment& env, const Descriptor& desc,
+                                              const PolicyShape& shape) {
+  return std::make_unique<MpiEvaluator>(spec, env, desc, shape);
+}
+
+}  // namespace qd::runtime

@@ -1,0 +1,58 @@
+// Local worker processes: forked once after setup (plugins loaded, components built), so each has
+// its own copy of the environment and of Box2D's unsynchronised global counters, which make threads
+// scale badly (see README, "Parallel evaluation"). The parameter batch, the episode seeds and the
+// per-offspring result records live in one shared anonymous mapping; workers claim chunks of rows
+// from an atomic counter there (dynamic load balancing), and the parent works too.
+//
+// Each worker has a socket pair to the parent: one byte starts a batch, one byte reports it done.
+// End of file on that socket means the worker died; no progress for timeout_seconds means it hung.
+// Either ends the batch with WorkerFailure naming the worker.
+#pragma once
+
+#include "runtime/evaluator.hpp"
+
+#include <sys/types.h>
+
+namespace qd::runtime {
+
+class ProcessEvaluator final : public Evaluator {
+ public:
+  // workers >= 2: the parent plus workers - 1 forked processes. capacity: most rows per batch.
+  ProcessEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers,
+                   std::size_t capacity, double timeout_seconds);
+  ~ProcessEvaluator() override;
+  ProcessEvaluator(const ProcessEvaluator&) = delete;
+  ProcessEvaluator& operator=(const ProcessEvaluator&) = delete;
+
+  int workers() const noexcept override { return static_cast<int>(children_.size()) + 1; }
+  const char* backend() const noexcept override { return "processes"; }
+  void evaluate(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, Evaluations& out) override;
+
+  // For tests: the pid of worker process w (1-based; the parent is worker 0).
+  pid_t worker_pid(int w) const { return children_.at(static_cast<std::size_t>(w - 1)).pid; }
+
+ private:
+  struct Control;
+  struct Child {
+    pid_t pid = -1;
+    int fd = -1;  // parent's end of the socket pair
+  };
+  [[noreturn]] void child_main(int w, int fd);
+  void work(int w, RowEvaluator& ev);
+  [[noreturn]] void fail(const std::string& message);
+  void shut_down() noexcept;
+
+  std::size_t P_, dims_, width_, capacity_;
+  double timeout_;
+  RowEvaluator own_;
+  void* map_ = nullptr;
+  std::size_t map_bytes_ = 0;
+  Control* ctl_ = nullptr;
+  double* params_ = nullptr;
+  std::uint64_t* seeds_ = nullptr;
+  double* records_ = nullptr;
+  std::vector<Child> children_;
+  bool broken_ = false;
+};
+
+}  // namespace qd::runtime
