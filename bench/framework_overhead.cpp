@@ -11,6 +11,7 @@
 
 #include <qd/policy.hpp>
 
+#include <unistd.h>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -43,7 +44,8 @@ int main(int argc, char** argv) {
   }
   tune_allocator();  // as qdrun does; it applies to the bare loop and the run alike
   try {
-    const fs::path out = fs::temp_directory_path() / "qd_framework_overhead";
+    // Per process, so two benchmarks can run side by side.
+    const fs::path out = fs::temp_directory_path() / ("qd_framework_overhead-" + std::to_string(::getpid()));
     fs::remove_all(out);
     Document doc = Document::read(argv[1]);
     int workers = 1, repeat = 3;
