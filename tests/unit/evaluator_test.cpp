@@ -11,6 +11,17 @@
 
 using namespace qd;
 
+namespace {
+// Every per-offspring field of two evaluations is identical.
+void expect_same(const runtime::Evaluations& a, const runtime::Evaluations& b) {
+  EXPECT_EQ(a.cells, b.cells);
+  EXPECT_EQ(a.descriptors, b.descriptors);
+  EXPECT_EQ(a.fitness, b.fitness);
+  EXPECT_EQ(a.steps, b.steps);
+  EXPECT_EQ(a.status, b.status);
+}
+}  // namespace
+
 TEST(Evaluator, OneAndThreeWorkersGiveIdenticalTracesAndCells) {
   Config ec = defaults_of(arm::kArmParams, "environment");
   arm::ArmEnvironment env(ec, BuildContext{});
@@ -25,11 +36,7 @@ TEST(Evaluator, OneAndThreeWorkersGiveIdenticalTracesAndCells) {
   runtime::Evaluations a, b;
   one.evaluate(params, seeds, a);
   three.evaluate(params, seeds, b);
-  ASSERT_EQ(a.cells, b.cells);
-  EXPECT_EQ(a.descriptors, b.descriptors);
-  EXPECT_EQ(a.fitness, b.fitness);
-  EXPECT_EQ(a.steps, b.steps);
-  EXPECT_EQ(a.status, b.status);
+  expect_same(a, b);
   EXPECT_EQ(a.status[5], EvalStatus::kInvalidAction);
   EXPECT_EQ(a.cells[5], -1);
 }
@@ -66,11 +73,7 @@ TEST(Evaluator, ProcessesEqualThreads) {
   serial.evaluate(params, seeds, a);
   for (int round = 0; round < 2; ++round) {  // reused shared memory and workers
     procs.evaluate(params, seeds, b);
-    EXPECT_EQ(a.cells, b.cells);
-    EXPECT_EQ(a.descriptors, b.descriptors);
-    EXPECT_EQ(a.fitness, b.fitness);
-    EXPECT_EQ(a.steps, b.steps);
-    EXPECT_EQ(a.status, b.status);
+    expect_same(a, b);
   }
   EXPECT_EQ(b.status[7], EvalStatus::kInvalidAction);
 }
