@@ -3,10 +3,26 @@
 #include <qd/state_io.hpp>
 
 #include <algorithm>
+#include <cstring>
 #include <numeric>
 #include <string>
+#include <thread>
+
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
 
 namespace qd {
+namespace {
+
+void pause() {
+#if defined(__SSE2__)
+  _mm_pause();
+#endif
+  std::this_thread::yield();
+}
+
+}  // namespace
 
 Archive::Archive(std::int64_t cells, std::size_t param_count, std::size_t descriptor_dims)
     : cells_(cells),
@@ -14,14 +30,41 @@ Archive::Archive(std::int64_t cells, std::size_t param_count, std::size_t descri
       dims_(descriptor_dims),
       cell_slot_(static_cast<std::size_t>(cells), -1) {
   QD_CHECK(cells > 0, "archive needs at least one cell");
+  reserve_slots();
 }
 
-Insertion Archive::offer(std::int64_t cell, const double* params, const double* descriptor, double fitness,
-                         double recn_error, bool replace) {
+void Archive::reserve_slots() {
+  // At most one slot per cell: the per-slot arrays never move, so a capture can read them while
+  // the loop adds slots. Only params_ (the big one) grows on demand.
+  const auto n = static_cast<std::size_t>(cells_);
+  slot_cell_.reserve(n);
+  desc_.reserve(n * dims_);
+  fitness_.reserve(n);
+  recn_.reserve(n);
+  dirty_.reserve(n);
+  // Deferred copies need parameter storage that never moves: reserve it for every cell when that
+  // is at most 2 GiB of address space (pages are only backed once written).
+  constexpr std::size_t kMaxReservedBytes = std::size_t{2} << 30;
+  if (param_count_ > 0 && n <= kMaxReservedBytes / sizeof(double) / param_count_) {
+    params_.reserve(n * param_count_);
+    if (!deferred_) deferred_ = std::make_unique<Deferred>(n);
+  }
+}
+
+std::int64_t Archive::place(std::int64_t cell, const double* descriptor, double fitness, double recn_error,
+                            bool replace, Insertion& result) {
   QD_CHECK(cell >= 0 && cell < cells_, "cell index out of range");
   std::int64_t slot = cell_slot_[static_cast<std::size_t>(cell)];
-  Insertion result = Insertion::kReplaced;
+  result = Insertion::kReplaced;
   if (slot < 0) {
+    if (params_.size() + param_count_ > params_.capacity() && capture_ &&
+        capture_->left.load(std::memory_order_acquire) != 0) {
+      // Growing moves the parameters a capture reads from: copy what is left here first.
+      for (std::size_t s : *capture_->slots) claim_and_copy(s);
+      wait_for_capture();
+    }
+    QD_CHECK(params_.size() + param_count_ <= params_.capacity() || pending_copies() == 0,
+             "archive storage would move under a deferred copy");
     slot = static_cast<std::int64_t>(slot_cell_.size());
     cell_slot_[static_cast<std::size_t>(cell)] = slot;
     slot_cell_.push_back(cell);
@@ -32,15 +75,105 @@ Insertion Archive::offer(std::int64_t cell, const double* params, const double* 
     dirty_.push_back(0);
     result = Insertion::kAdded;
   } else if (!replace) {
-    return Insertion::kRejected;
+    result = Insertion::kRejected;
+    return -1;
+  } else {
+    before_write(static_cast<std::size_t>(slot));
   }
   const auto s = static_cast<std::size_t>(slot);
-  std::copy(params, params + param_count_, params_.begin() + static_cast<std::ptrdiff_t>(s * param_count_));
   std::copy(descriptor, descriptor + dims_, desc_.begin() + static_cast<std::ptrdiff_t>(s * dims_));
   fitness_[s] = fitness;
   recn_[s] = recn_error;
   mark_dirty(s);
+  return slot;
+}
+
+Insertion Archive::offer(std::int64_t cell, const double* params, const double* descriptor, double fitness,
+                         double recn_error, bool replace) {
+  QD_CHECK(pending_copies() == 0, "Archive::offer while deferred copies are pending");
+  Insertion result;
+  const std::int64_t slot = place(cell, descriptor, fitness, recn_error, replace, result);
+  if (slot >= 0)
+    std::memcpy(params_.data() + static_cast<std::size_t>(slot) * param_count_, params, param_count_ * sizeof(double));
   return result;
+}
+
+Insertion Archive::offer_deferred(std::int64_t cell, const double* params, const double* descriptor, double fitness,
+                                  double recn_error, bool replace, std::vector<DeferredCopy>& copies) {
+  QD_CHECK(deferred_ != nullptr, "offer_deferred on an archive that cannot defer copies");
+  Insertion result;
+  const std::int64_t slot = place(cell, descriptor, fitness, recn_error, replace, result);
+  if (slot >= 0) {
+    const auto s = static_cast<std::size_t>(slot);
+    deferred_->pending.fetch_add(1, std::memory_order_relaxed);
+    deferred_->source[s].store(params, std::memory_order_release);
+    copies.push_back({s, params});
+  }
+  return result;
+}
+
+void Archive::complete_copy(const DeferredCopy& copy) {
+  Deferred& d = *deferred_;
+  // A later offer to the same slot has its own copy queued behind this one: skip the dead row.
+  if (d.source[copy.slot].load(std::memory_order_acquire) == copy.source) {
+    std::memcpy(params_.data() + copy.slot * param_count_, copy.source, param_count_ * sizeof(double));
+    const double* expected = copy.source;
+    d.source[copy.slot].compare_exchange_strong(expected, nullptr, std::memory_order_acq_rel);
+  }
+  d.pending.fetch_sub(1, std::memory_order_acq_rel);
+}
+
+void Archive::write_record(std::size_t slot, char* out) const {
+  const auto slot64 = static_cast<std::int64_t>(slot);
+  std::memcpy(out, &slot64, 8);
+  std::memcpy(out + 8, &slot_cell_[slot], 8);
+  std::memcpy(out + 16, &fitness_[slot], 8);
+  std::memcpy(out + 24, &recn_[slot], 8);
+  std::memcpy(out + 32, descriptor(slot), dims_ * sizeof(double));
+  std::memcpy(out + 32 + dims_ * sizeof(double), params(slot), param_count_ * sizeof(double));
+}
+
+void Archive::begin_capture(const std::vector<std::size_t>& slots, char* out) {
+  QD_CHECK(pending_copies() == 0, "begin_capture while deferred copies are pending");
+  if (!capture_) capture_ = std::make_unique<Capture>(static_cast<std::size_t>(cells_));
+  Capture& c = *capture_;
+  QD_CHECK(c.left.load(std::memory_order_acquire) == 0, "begin_capture while a capture is in progress");
+  for (std::size_t k = 0; k < slots.size(); ++k) {
+    const std::size_t s = slots[k];
+    QD_CHECK(s < size(), "capture of a slot the archive does not have");
+    QD_CHECK(c.state[s].load(std::memory_order_relaxed) == 0, "slot listed twice in a capture");
+    c.index[s] = k;
+    c.state[s].store(1, std::memory_order_relaxed);
+  }
+  c.slots = &slots;
+  c.out = out;
+  c.left.store(slots.size(), std::memory_order_release);
+}
+
+bool Archive::claim_and_copy(std::size_t slot) {
+  Capture& c = *capture_;
+  std::uint8_t expected = 1;
+  if (!c.state[slot].compare_exchange_strong(expected, 2, std::memory_order_acq_rel)) return false;
+  write_record(slot, c.out + c.index[slot] * record_bytes());
+  c.state[slot].store(0, std::memory_order_release);
+  c.left.fetch_sub(1, std::memory_order_acq_rel);
+  return true;
+}
+
+void Archive::wait_for_capture() const {
+  while (capture_->left.load(std::memory_order_acquire) != 0) pause();
+}
+
+void Archive::capture_before_write(std::size_t slot) {
+  if (capture_->state[slot].load(std::memory_order_acquire) == 0) return;
+  if (!claim_and_copy(slot))  // the other thread is copying it right now
+    while (capture_->state[slot].load(std::memory_order_acquire) != 0) pause();
+}
+
+void Archive::capture() {
+  if (!capture_ || capture_->left.load(std::memory_order_acquire) == 0) return;
+  for (std::size_t s : *capture_->slots) claim_and_copy(s);
+  wait_for_capture();
 }
 
 void Archive::take_dirty(std::vector<std::size_t>& slots) {
@@ -100,6 +233,7 @@ double Archive::mean_recn_error() const {
 }
 
 void Archive::save(std::ostream& out) const {
+  QD_CHECK(pending_copies() == 0, "archive save while deferred copies are pending");
   state::write_tag(out, "ARCH");
   state::write<std::int64_t>(out, cells_);
   state::write<std::uint64_t>(out, param_count_);
@@ -112,6 +246,8 @@ void Archive::save(std::ostream& out) const {
 }
 
 void Archive::load(std::istream& in) {
+  QD_CHECK(!capture_ || capture_->left.load() == 0, "archive load during a capture");
+  QD_CHECK(pending_copies() == 0, "archive load while deferred copies are pending");
   state::expect_tag(in, "ARCH");
   if (state::read<std::int64_t>(in) != cells_ || state::read<std::uint64_t>(in) != param_count_ ||
       state::read<std::uint64_t>(in) != dims_)
@@ -131,6 +267,7 @@ void Archive::load(std::istream& in) {
       throw StateError("archive in checkpoint has an invalid cell index");
     cell_slot_[static_cast<std::size_t>(c)] = static_cast<std::int64_t>(s);
   }
+  reserve_slots();
   // Conservative: every loaded slot counts as written.
   dirty_.assign(m, 1);
   dirty_slots_.resize(m);

@@ -1,10 +1,15 @@
+#include "runtime/row_copier.hpp"
+
 #include <qd/archive.hpp>
 #include <qd/errors.hpp>
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstring>
 #include <set>
 #include <sstream>
+#include <thread>
 #include <vector>
 
 using namespace qd;
@@ -102,4 +107,110 @@ TEST(Archive, RestoreRebuildsFromRecordsAndRejectsMisfits) {
   EXPECT_THROW(a.restore(1, 3, kP1, kD, 0, 0), StateError);   // slot 1 holds cell 2
   EXPECT_THROW(a.restore(2, 7, kP1, kD, 0, 0), StateError);   // cell 7 already has slot 0
   EXPECT_THROW(a.restore(2, 10, kP1, kD, 0, 0), StateError);  // no such cell
+}
+
+// --- Deferred copies (Archive::offer_deferred, runtime::RowCopier) ---
+
+TEST(Archive, DeferredCopyIsReadFromItsSourceUntilCopied) {
+  Archive a(10, 3, 2);
+  ASSERT_TRUE(a.can_defer_copies());
+  double row_a[3] = {1, 2, 3}, row_b[3] = {4, 5, 6}, row_c[3] = {7, 8, 9};
+  std::vector<Archive::DeferredCopy> copies;
+  EXPECT_EQ(a.offer_deferred(4, row_a, kD, 1.0, 0.0, false, copies), Insertion::kAdded);
+  EXPECT_EQ(a.offer_deferred(4, row_b, kD, 2.0, 0.0, true, copies), Insertion::kReplaced);
+  EXPECT_EQ(a.offer_deferred(4, row_c, kD, 3.0, 0.0, false, copies), Insertion::kRejected);
+  ASSERT_EQ(copies.size(), 2u);  // no copy for a rejection
+  EXPECT_EQ(a.pending_copies(), 2u);
+  EXPECT_EQ(a.params(0), row_b);  // the latest accepted row, where it is
+  EXPECT_EQ(a.fitness(0), 2.0);   // everything but the parameters is stored at once
+  a.complete_copy(copies[0]);     // the dead row A is skipped, B is still referred to
+  EXPECT_EQ(a.params(0), row_b);
+  a.complete_copy(copies[1]);
+  EXPECT_EQ(a.pending_copies(), 0u);
+  EXPECT_NE(a.params(0), row_b);  // now the archive's own copy
+  row_b[1] = -1.0;                // the source may be reused after its copy
+  EXPECT_EQ(std::vector<double>(a.params(0), a.params(0) + 3), (std::vector<double>{4, 5, 6}));
+}
+
+TEST(Archive, DeferredCopiesOnAThreadGiveTheArchiveOfImmediateCopies) {
+  // The run's pattern: two alternating offspring buffers, one batch of copies in flight while the
+  // next batch is made; selection reads parents in between. Same decisions, same archive bytes.
+  const std::size_t P = 300, batch = 64, cells = 200;
+  Archive direct(static_cast<std::int64_t>(cells), P, 2), deferred(static_cast<std::int64_t>(cells), P, 2);
+  Matrix buffers[2];
+  std::vector<Archive::DeferredCopy> copies;
+  Rng rng(7, Stream::kPlugin);
+  {
+    runtime::RowCopier copier(deferred);
+    for (int it = 0; it < 200; ++it) {
+      auto& theta = buffers[it & 1];
+      copier.wait(1);
+      theta.resize(static_cast<Eigen::Index>(batch), static_cast<Eigen::Index>(P));
+      rng.fill_uniform(theta.data(), static_cast<std::size_t>(theta.size()), -1.0, 1.0);
+      if (deferred.size() > 0) {  // parents read while copies may be in flight
+        Parents pd, pi;
+        Rng s1(static_cast<std::uint64_t>(it), Stream::kSelection),
+            s2(static_cast<std::uint64_t>(it), Stream::kSelection);
+        deferred.select(8, s1, pd);
+        direct.select(8, s2, pi);
+        ASSERT_TRUE(pd.theta == pi.theta) << "iteration " << it;
+      }
+      for (std::size_t i = 0; i < batch; ++i) {
+        const auto cell = static_cast<std::int64_t>(rng.below(cells));
+        const bool replace = rng.uniform() < 0.5;
+        const double* row = theta.row(static_cast<Eigen::Index>(i)).data();
+        ASSERT_EQ(deferred.offer_deferred(cell, row, kD, 0.0, 0.0, replace, copies),
+                  direct.offer(cell, row, kD, 0.0, 0.0, replace));
+      }
+      copier.submit(copies);
+    }
+    copier.wait();
+  }
+  EXPECT_EQ(deferred.pending_copies(), 0u);
+  std::stringstream a, b;
+  direct.save(a);
+  deferred.save(b);
+  EXPECT_EQ(a.str(), b.str());
+}
+
+TEST(ArchiveDeathTest, ImmediateOfferWhileCopiesArePendingAborts) {
+  Archive a(10, 3, 2);
+  std::vector<Archive::DeferredCopy> copies;
+  a.offer_deferred(1, kP1, kD, 0.0, 0.0, false, copies);
+  EXPECT_DEATH(a.offer(2, kP2, kD, 0.0, 0.0, false), "deferred copies are pending");
+}
+
+// --- Background capture for checkpoints (Archive::begin_capture / capture) ---
+
+TEST(Archive, CaptureHoldsTheArchiveAsItWasWhenItBegan) {
+  const std::size_t P = 500, cells = 300;
+  Archive a(static_cast<std::int64_t>(cells), P, 2);
+  std::vector<double> row(P);
+  Rng rng(3, Stream::kPlugin);
+  for (std::size_t c = 0; c < cells; c += 2) {
+    rng.fill_uniform(row.data(), P, -1.0, 1.0);
+    a.offer(static_cast<std::int64_t>(c), row.data(), kD, static_cast<double>(c), 0.0, false);
+  }
+  std::vector<std::size_t> slots;  // every other slot, in a shuffled order
+  for (std::size_t s = 0; s < a.size(); s += 2) slots.push_back(s);
+  std::reverse(slots.begin(), slots.end());
+  const std::size_t rec = a.record_bytes();
+  ASSERT_EQ(rec, 4 * 8 + (2 + P) * 8);
+  std::vector<char> expected(slots.size() * rec), captured(slots.size() * rec);
+  for (std::size_t k = 0; k < slots.size(); ++k) a.write_record(slots[k], expected.data() + k * rec);
+
+  a.begin_capture(slots, captured.data());
+  std::thread writer([&] { a.capture(); });
+  // Meanwhile the loop replaces elites, adds new ones and rewrites errors.
+  for (int i = 0; i < 2000; ++i) {
+    rng.fill_uniform(row.data(), P, -1.0, 1.0);
+    const auto cell = static_cast<std::int64_t>(rng.below(cells));
+    a.offer(cell, row.data(), kD, -1.0, 0.5, true);
+    if (a.size() > 0) a.set_recn_error(static_cast<std::size_t>(rng.below(a.size())), 9.0);
+  }
+  writer.join();
+  EXPECT_EQ(captured, expected);
+  std::int64_t slot0 = 0;
+  std::memcpy(&slot0, captured.data(), 8);
+  EXPECT_EQ(static_cast<std::size_t>(slot0), slots[0]);
 }

@@ -2,7 +2,8 @@
 //
 // Elites are stored densely in insertion order ("slots"); a cell -> slot index maps cells to them.
 // Slots are never removed, only overwritten on replacement, so slot order is deterministic.
-// Threading: const members may run concurrently; offer() must not overlap anything.
+// Threading: const members may run concurrently; offer() must not overlap anything, except
+// capture() (below), which a background thread may run while the loop offers.
 #pragma once
 
 #include <qd/export.hpp>
@@ -11,8 +12,10 @@
 
 #include <Eigen/Core>
 
+#include <atomic>
 #include <cstdint>
 #include <iosfwd>
+#include <memory>
 #include <vector>
 
 namespace qd {
@@ -42,11 +45,16 @@ class QD_EXPORT Archive {
 
   // Slot accessors, slot < size().
   std::int64_t cell(std::size_t slot) const { return slot_cell_[slot]; }
-  const double* params(std::size_t slot) const { return params_.data() + slot * param_count_; }
+  const double* params(std::size_t slot) const {
+    if (deferred_)  // a row whose deferred copy has not happened yet is read where it is
+      if (const double* p = deferred_->source[slot].load(std::memory_order_acquire)) return p;
+    return params_.data() + slot * param_count_;
+  }
   const double* descriptor(std::size_t slot) const { return desc_.data() + slot * dims_; }
   double fitness(std::size_t slot) const { return fitness_[slot]; }
   double recn_error(std::size_t slot) const { return recn_[slot]; }
   void set_recn_error(std::size_t slot, double e) {
+    before_write(slot);
     recn_[slot] = e;
     mark_dirty(slot);
   }
@@ -55,6 +63,23 @@ class QD_EXPORT Archive {
   // occupant if `replace` is true (the insertion rule's decision) and rejects it otherwise.
   Insertion offer(std::int64_t cell, const double* params, const double* descriptor, double fitness, double recn_error,
                   bool replace);
+
+  // Deferred copies, so the loop need not wait for memory: offer_deferred() decides exactly as
+  // offer() but does not copy the parameters. The slot refers to `params` (the caller's row) and
+  // the copy is appended to `copies`, for one other thread to carry out with complete_copy(), in
+  // order. params(slot) reads the referred row until then, so nothing depends on when copies
+  // happen. The caller keeps each referred row valid and unchanged until its copy completed, and
+  // completes every copy before offer(), restore(), load() or begin_capture(). Only when
+  // can_defer_copies(): storage for every cell is reserved then, so parameters never move.
+  struct DeferredCopy {
+    std::size_t slot;
+    const double* source;
+  };
+  bool can_defer_copies() const noexcept { return deferred_ != nullptr; }
+  Insertion offer_deferred(std::int64_t cell, const double* params, const double* descriptor, double fitness,
+                           double recn_error, bool replace, std::vector<DeferredCopy>& copies);
+  void complete_copy(const DeferredCopy& copy);
+  std::size_t pending_copies() const noexcept { return deferred_ ? deferred_->pending.load() : 0; }
 
   // Draws n parents uniformly over occupied cells: without replacement when size() >= n, with
   // replacement otherwise (spec 3.3.3.1). Requires size() > 0.
@@ -73,6 +98,21 @@ class QD_EXPORT Archive {
   void restore(std::size_t slot, std::int64_t cell, const double* params, const double* descriptor, double fitness,
                double recn_error);
 
+  // A slot's record in checkpoint files: slot, cell (int64), fitness, recn error, descriptor,
+  // parameters (doubles), native byte order.
+  std::size_t record_bytes() const noexcept { return 4 * sizeof(std::int64_t) + (dims_ + param_count_) * 8; }
+  void write_record(std::size_t slot, char* out) const;
+
+  // Background capture, so a checkpoint need not copy the archive on the loop's thread.
+  // begin_capture() lists slots and a buffer: slot slots[k]'s record goes to out + k * record_bytes().
+  // capture() (any one other thread) copies the listed records not yet copied and returns when
+  // all are in the buffer. Meanwhile the loop may go on: offer() and set_recn_error() on a listed
+  // slot not yet copied copy it first, so the buffer always holds the archive as it was at
+  // begin_capture(). `slots` and `out` must stay valid until capture() returns; a new
+  // begin_capture() must wait for that.
+  void begin_capture(const std::vector<std::size_t>& slots, char* out);
+  void capture();
+
  private:
   void mark_dirty(std::size_t slot) {
     if (!dirty_[slot]) {
@@ -80,6 +120,18 @@ class QD_EXPORT Archive {
       dirty_slots_.push_back(slot);
     }
   }
+  void reserve_slots();
+  // The shared part of offer() and offer_deferred(): the slot that takes the individual (-1 when
+  // rejected), with everything but the parameters stored.
+  std::int64_t place(std::int64_t cell, const double* descriptor, double fitness, double recn_error, bool replace,
+                     Insertion& result);
+  // Called before any change to an existing slot (and before storage can move).
+  void before_write(std::size_t slot) {
+    if (capture_ && capture_->left.load(std::memory_order_acquire) != 0) capture_before_write(slot);
+  }
+  void capture_before_write(std::size_t slot);
+  bool claim_and_copy(std::size_t slot);
+  void wait_for_capture() const;
 
   std::int64_t cells_;
   std::size_t param_count_;
@@ -92,6 +144,28 @@ class QD_EXPORT Archive {
   std::vector<double> recn_;
   std::vector<std::uint8_t> dirty_;  // per slot
   std::vector<std::size_t> dirty_slots_;
+
+  struct Capture {
+    explicit Capture(std::size_t cells) : state(new std::atomic<std::uint8_t>[cells]), index(new std::size_t[cells]) {
+      for (std::size_t s = 0; s < cells; ++s) state[s].store(0, std::memory_order_relaxed);
+    }
+    // Per slot: 0 nothing to do, 1 listed and not yet copied, 2 being copied.
+    std::unique_ptr<std::atomic<std::uint8_t>[]> state;
+    std::unique_ptr<std::size_t[]> index;  // per slot: its position in the list
+    const std::vector<std::size_t>* slots = nullptr;
+    char* out = nullptr;
+    std::atomic<std::size_t> left{0};  // listed records not yet in the buffer
+  };
+  std::unique_ptr<Capture> capture_;  // made by the first begin_capture()
+
+  struct Deferred {
+    explicit Deferred(std::size_t cells) : source(new std::atomic<const double*>[cells]) {
+      for (std::size_t s = 0; s < cells; ++s) source[s].store(nullptr, std::memory_order_relaxed);
+    }
+    std::unique_ptr<std::atomic<const double*>[]> source;  // per slot: the row to read until copied
+    std::atomic<std::size_t> pending{0};
+  };
+  std::unique_ptr<Deferred> deferred_;  // null when the storage for every cell would be too large
 };
 
 }  // namespace qd

@@ -37,7 +37,7 @@
 
 namespace qd {
 
-inline constexpr std::uint32_t kPluginAbiVersion = 1;
+inline constexpr std::uint32_t kPluginAbiVersion = 2;
 
 enum class Kind : std::uint32_t { kEnvironment = 1, kDescriptor = 2, kRepresentation = 3, kMutator = 4 };
 QD_EXPORT const char* to_string(Kind kind) noexcept;

@@ -13,9 +13,7 @@
 namespace qd::runtime {
 namespace {
 
-void write_at(int fd, const std::string& bytes, std::uint64_t offset, const std::filesystem::path& path) {
-  const char* p = bytes.data();
-  std::size_t left = bytes.size();
+void write_at(int fd, const char* p, std::size_t left, std::uint64_t offset, const std::filesystem::path& path) {
   auto at = static_cast<off_t>(offset);
   while (left > 0) {
     const ssize_t w = ::pwrite(fd, p, left, at);
@@ -86,20 +84,22 @@ void CheckpointWriter::work() {
 }
 
 void CheckpointWriter::write(const Job& job) {
+  if (job.prepare) job.prepare();
   // Appended data first: a checkpoint that counts it must never be visible before it is durable.
   for (const Append& a : job.appends) {
     Fd f{::open(a.path.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644)};
     if (f.fd < 0) throw Error("cannot open " + a.path.string() + ": " + std::strerror(errno));
     if (::ftruncate(f.fd, static_cast<off_t>(a.offset)) != 0)
       throw Error("cannot truncate " + a.path.string() + ": " + std::strerror(errno));
-    write_at(f.fd, a.bytes, a.offset, a.path);
+    write_at(f.fd, a.bytes.data(), a.bytes.size(), a.offset, a.path);
+    if (a.more_size > 0) write_at(f.fd, a.more, a.more_size, a.offset + a.bytes.size(), a.path);
     if (::fsync(f.fd) != 0) throw Error("cannot flush " + a.path.string() + ": " + std::strerror(errno));
   }
   const std::filesystem::path tmp = job.checkpoint.string() + ".tmp";
   {
     Fd f{::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644)};
     if (f.fd < 0) throw Error("cannot create " + tmp.string() + ": " + std::strerror(errno));
-    write_at(f.fd, job.state, 0, tmp);
+    write_at(f.fd, job.state.data(), job.state.size(), 0, tmp);
   }
   commit_file(tmp, job.checkpoint);
   for (const auto& p : job.remove_after) {

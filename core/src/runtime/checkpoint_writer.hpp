@@ -1,7 +1,8 @@
 // Writes checkpoints on a background thread, so the loop does not wait for the disk.
 //
-// The loop serialises its state into buffers at a loop boundary (a memory copy) and hands them
-// over; this thread appends what is new since the last checkpoint to the append-only files (the
+// At a loop boundary the loop serialises its small state into buffers and starts a capture of
+// the archive's changed slots (Archive::begin_capture), then hands the job over; this thread
+// copies the captured slots (Job::prepare), appends what is new since the last checkpoint to the append-only files (the
 // dataset rows, the archive slots written since), then writes, fsyncs and renames `checkpoint.bin`. At most one
 // checkpoint is in flight: the next submit() (and wait()) first waits for the previous one. A checkpoint that was not
 // committed when the process died is simply absent, and resume continues from the one before, which is equally
@@ -12,6 +13,7 @@
 #include <cstdint>
 #include <exception>
 #include <filesystem>
+#include <functional>
 #include <mutex>
 #include <streambuf>
 #include <string>
@@ -43,13 +45,17 @@ class StringAppender : public std::streambuf {
 class CheckpointWriter {
  public:
   // Bytes for an append-only file: written at `offset`, its committed size so far. Anything past
-  // the offset comes from a checkpoint that never committed and is cut away first.
+  // the offset comes from a checkpoint that never committed and is cut away first. `bytes` go
+  // first, then `more_size` bytes at `more` (a buffer the caller keeps, filled by `prepare`).
   struct Append {
     std::filesystem::path path;
     std::uint64_t offset = 0;
     std::string bytes;
+    const char* more = nullptr;
+    std::size_t more_size = 0;
   };
   struct Job {
+    std::function<void()> prepare;                    // runs on the writer thread before anything is written
     std::filesystem::path checkpoint;                 // final path; written via "<path>.tmp"
     std::string state;                                // checkpoint bytes
     std::vector<Append> appends;                      // made durable before the checkpoint is committed

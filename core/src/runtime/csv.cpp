@@ -3,10 +3,16 @@
 #include <qd/errors.hpp>
 
 #include <fcntl.h>
+#if defined(__AVX__)
+#include <immintrin.h>
+#endif
 #include <unistd.h>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <utility>
 
 namespace qd::runtime {
 namespace fs = std::filesystem;
@@ -23,6 +29,16 @@ void append_number(std::string& out, double v) {
   char buf[32];
   const auto r = std::to_chars(buf, buf + sizeof(buf), v);
   out.append(buf, r.ptr);
+}
+
+void clear_upper_vector_state() noexcept {
+#if defined(__AVX__)
+  _mm256_zeroupper();  // the compiler knows what it clobbers
+#elif defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+  // Built without AVX, this code keeps nothing in the upper halves; vzeroupper keeps the rest.
+  static const bool has_avx = __builtin_cpu_supports("avx");
+  if (has_avx) __asm__ volatile("vzeroupper");
+#endif
 }
 
 std::string format_number(double v) {
@@ -62,10 +78,56 @@ void write_file_atomic(const fs::path& path, const std::string& content) {
   commit_file(tmp, path);
 }
 
+void rename_durably(const fs::path& tmp, const fs::path& path);
+
+AtomicFile::AtomicFile(fs::path path) : path_(std::move(path)), tmp_(path_.string() + ".tmp") {
+  fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw Error("cannot create " + tmp_.string() + ": " + std::strerror(errno));
+}
+
+AtomicFile::~AtomicFile() {
+  if (fd_ < 0) return;
+  ::close(fd_);
+  ::unlink(tmp_.c_str());
+}
+
+void AtomicFile::write(const std::string& bytes) {
+  const char* p = bytes.data();
+  std::size_t left = bytes.size();
+  while (left > 0) {
+    const ssize_t w = ::write(fd_, p, left);
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      throw Error("cannot write " + tmp_.string() + ": " + std::strerror(errno));
+    }
+    p += w;
+    left -= static_cast<std::size_t>(w);
+  }
+#ifdef __linux__
+  // Start writing this piece back now, asynchronously (errors surface at the fsync).
+  ::sync_file_range(fd_, static_cast<off_t>(written_), static_cast<off_t>(bytes.size()), SYNC_FILE_RANGE_WRITE);
+#endif
+  written_ += bytes.size();
+}
+
+void AtomicFile::commit() {
+  if (::fsync(fd_) != 0) throw Error("cannot flush " + tmp_.string() + ": " + std::strerror(errno));
+  if (::close(fd_) != 0) {
+    fd_ = -1;
+    throw Error("cannot write " + tmp_.string() + ": " + std::strerror(errno));
+  }
+  fd_ = -1;
+  rename_durably(tmp_, path_);
+}
+
 void commit_file(const fs::path& tmp, const fs::path& path) {
   const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0 || ::fsync(fd) != 0) throw Error("cannot flush " + tmp.string());
   ::close(fd);
+  rename_durably(tmp, path);
+}
+
+void rename_durably(const fs::path& tmp, const fs::path& path) {
   std::error_code ec;
   fs::rename(tmp, path, ec);
   if (ec) throw Error("cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message());

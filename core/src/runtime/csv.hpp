@@ -12,12 +12,35 @@ void append_number(std::string& out, double v);
 std::string format_number(double v);
 void append_int(std::string& out, std::int64_t v);
 
+// Zeroes the upper halves of the AVX registers (x86 with AVX; a no-op elsewhere). Vectorised code
+// can leave them dirty, and then every SSE instruction of code built for generic x86-64, such as
+// libstdc++'s number formatting, pays a merge penalty: formatting archive.csv ran 3.5x slower.
+void clear_upper_vector_state() noexcept;
+
 // Writes `content` to `path` atomically: a temporary file in the same directory, fsync, rename.
 // Readers see either the old file or the new one, never a torn write.
 void write_file_atomic(const std::filesystem::path& path, const std::string& content);
 
 // Makes a finished temporary file durable and moves it over `path` (fsync, rename, fsync dir).
 void commit_file(const std::filesystem::path& tmp, const std::filesystem::path& path);
+
+// Writes a large file piece by piece to "<path>.tmp" and moves it over `path` on commit(). The
+// disk writes of each piece start at once (Linux), so commit()'s fsync does not wait for the
+// whole file. Without commit() the temporary file is removed.
+class AtomicFile {
+ public:
+  explicit AtomicFile(std::filesystem::path path);
+  ~AtomicFile();
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+  void write(const std::string& bytes);
+  void commit();
+
+ private:
+  std::filesystem::path path_, tmp_;
+  int fd_ = -1;
+  std::uint64_t written_ = 0;
+};
 
 // Appends text and flushes it to the OS (so a killed run keeps every completed row).
 void append_to_file(const std::filesystem::path& path, const std::string& text);

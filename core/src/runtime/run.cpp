@@ -22,7 +22,6 @@ namespace qd::runtime {
 namespace fs = std::filesystem;
 
 namespace {
-
 constexpr char kCheckpointMagic[8] = {'Q', 'D', 'C', 'K', 'P', 'T', '0', '2'};
 constexpr const char* kCheckpointFile = "checkpoint.bin";
 // Checkpoint format 02: the archive and the dataset live in append-only files beside the checkpoint.
@@ -298,7 +297,7 @@ void Run::loop_zero() {
   const std::size_t P = shape_.param_count();
   Parents& none = parents_;
   none.theta.resize(0, static_cast<Eigen::Index>(P));
-  Offspring& off = offspring_;
+  Offspring& off = offspring_[0];
   off.reset(n, P, 0);
   Rng rng(s.seed, Stream::kInitial, 0);
   MutateContext mctx{0, 0, &rng, repr_.get(), archive_.get()};
@@ -344,8 +343,12 @@ void Run::map_elites_loop(int loop) {
   std::vector<std::int64_t> touched;  // cells inserted or replaced this loop, first touch first
   std::vector<std::uint8_t> touched_flag(static_cast<std::size_t>(archive_->cells()), 0);
   Parents& parents = parents_;
-  Offspring& off = offspring_;
   Vector& recn = recn_;
+  // Accepted policies reach the archive's storage on a background thread (RowCopier) while the
+  // next batch is evaluated; until then the archive reads them from the offspring buffer, which
+  // is therefore not refilled before its copies are done.
+  const bool defer = archive_->can_defer_copies();
+  if (defer && !row_copier_) row_copier_ = std::make_unique<RowCopier>(*archive_);
   Evaluations& ev = evaluations_buffer_;
   std::vector<std::uint64_t>& seeds = seeds_;
   seeds.resize(batch);
@@ -361,6 +364,8 @@ void Run::map_elites_loop(int loop) {
       parents.recn_error.resize(0);
       parents.cells.clear();
     }
+    Offspring& off = offspring_[it & 1];
+    if (defer) row_copier_->wait(1);  // the batch two iterations back used this buffer
     off.reset(batch, P, LD);
     Rng mrng(s.seed, Stream::kMutation, static_cast<std::uint64_t>(loop), static_cast<std::uint64_t>(it));
     MutateContext mctx{loop, it, &mrng, repr_.get(), archive_.get()};
@@ -398,8 +403,10 @@ void Run::map_elites_loop(int loop) {
           replace = coin.uniform() < s.replace_probability;
       }
       const auto e = static_cast<Eigen::Index>(i);
-      outcomes[i] = archive_->offer(cell, off.theta.row(e).data(), ev.descriptors.row(e).data(), ev.fitness[i],
-                                    LD ? recn[e] : 0.0, replace);
+      outcomes[i] = defer ? archive_->offer_deferred(cell, off.theta.row(e).data(), ev.descriptors.row(e).data(),
+                                                     ev.fitness[i], LD ? recn[e] : 0.0, replace, copies_)
+                          : archive_->offer(cell, off.theta.row(e).data(), ev.descriptors.row(e).data(), ev.fitness[i],
+                                            LD ? recn[e] : 0.0, replace);
       if (outcomes[i] == Insertion::kAdded) ++fb.added;
       if (outcomes[i] == Insertion::kReplaced) ++fb.replaced;
       if (outcomes[i] == Insertion::kRejected) ++fb.rejected;
@@ -409,11 +416,13 @@ void Run::map_elites_loop(int loop) {
         touched.push_back(cell);
       }
     }
+    if (defer) row_copier_->submit(copies_);
     fb.outcomes = &outcomes;
     mutator_->feedback(fb);
     write_metrics_row(loop, it, &off, fb.added, fb.replaced, fb.invalid);
     report(loop, it, false);
   }
+  if (defer) row_copier_->wait();
   // Spec 3.3.4: the dataset gains the current occupant of every newly discovered cell.
   for (std::int64_t cell : touched)
     if (!dataset_->contains_cell(cell))
@@ -515,14 +524,13 @@ void Run::write_snapshot(const fs::path& path) const {
   if (ex_.settings.snapshot_parameters)
     for (std::size_t k = 0; k < P; ++k) out += ",solution_" + std::to_string(k);
   out += '\n';
-  const fs::path tmp = path.string() + ".tmp";
-  std::ofstream file(tmp, std::ios::binary | std::ios::trunc);
-  if (!file) throw Error("cannot create " + tmp.string());
+  AtomicFile file(path);
   // Rows in cell order, so two archives with the same content give the same file.
   std::vector<std::size_t> slots(archive_->size());
   std::iota(slots.begin(), slots.end(), std::size_t{0});
   std::sort(slots.begin(), slots.end(), [&](auto a, auto b) { return archive_->cell(a) < archive_->cell(b); });
   for (std::size_t slot : slots) {
+    clear_upper_vector_state();
     append_int(out, archive_->cell(slot));
     out += ',';
     append_number(out, archive_->fitness(slot));
@@ -538,15 +546,13 @@ void Run::write_snapshot(const fs::path& path) const {
         append_number(out, archive_->params(slot)[k]);
       }
     out += '\n';
-    if (out.size() > (std::size_t{1} << 20)) {
-      file.write(out.data(), static_cast<std::streamsize>(out.size()));
+    if (out.size() > (std::size_t{4} << 20)) {
+      file.write(out);
       out.clear();
     }
   }
-  file.write(out.data(), static_cast<std::streamsize>(out.size()));
-  file.close();
-  if (!file) throw Error("cannot write " + tmp.string());
-  commit_file(tmp, path);
+  file.write(out);
+  file.commit();
 }
 
 namespace {
@@ -688,23 +694,10 @@ fs::path Run::archive_log_path(std::uint64_t generation) const {
   return dir_ / name;
 }
 
-std::size_t Run::archive_record_bytes() const {
-  return 4 * sizeof(std::int64_t) + (archive_->descriptor_dims() + shape_.param_count()) * sizeof(double);
-}
-
-void Run::append_archive_record(std::string& out, std::size_t slot) const {
-  const auto slot64 = static_cast<std::int64_t>(slot);
-  append_raw(out, slot64);
-  append_raw(out, archive_->cell(slot));
-  append_raw(out, archive_->fitness(slot));
-  append_raw(out, archive_->recn_error(slot));
-  out.append(reinterpret_cast<const char*>(archive_->descriptor(slot)), archive_->descriptor_dims() * sizeof(double));
-  out.append(reinterpret_cast<const char*>(archive_->params(slot)), shape_.param_count() * sizeof(double));
-}
-
 void Run::write_checkpoint(int loop) {
-  // Serialised here (a memory copy of what changed since the last checkpoint), written by the
-  // background writer while the next loop runs. Waits for the previous checkpoint first.
+  // Written by the background writer while the next loop runs. The archive's changed slots are
+  // copied on that thread too (Archive::capture; the loop copies a slot itself only if it is about
+  // to overwrite it first). Waits for the previous checkpoint first.
   if (!checkpoint_writer_) checkpoint_writer_ = std::make_unique<CheckpointWriter>();
   checkpoint_writer_->wait();
   CheckpointWriter::Job& job = checkpoint_job_;
@@ -720,10 +713,11 @@ void Run::write_checkpoint(int loop) {
   CheckpointWriter::Append& arch = job.appends[0];
   std::vector<std::size_t>& dirty = dirty_slots_;
   archive_->take_dirty(dirty);
-  const std::size_t rec = archive_record_bytes();
+  const std::size_t rec = archive_->record_bytes();
   const std::uint64_t header = sizeof(kArchiveLogMagic) + 2 * sizeof(std::uint64_t);
   const std::uint64_t live = header + archive_->size() * rec;
   const bool compact = archive_bytes_saved_ == 0 || archive_bytes_saved_ + dirty.size() * rec > 2 * live;
+  std::vector<std::size_t>* listed = &dirty;
   if (compact) {
     if (archive_bytes_saved_ != 0) {
       job.remove_after.push_back(archive_log_path(archive_generation_));
@@ -731,18 +725,26 @@ void Run::write_checkpoint(int loop) {
     }
     arch.path = archive_log_path(archive_generation_);
     arch.offset = 0;
-    arch.bytes.reserve(live);
     arch.bytes.append(kArchiveLogMagic, sizeof(kArchiveLogMagic));
     append_raw(arch.bytes, static_cast<std::uint64_t>(shape_.param_count()));
     append_raw(arch.bytes, static_cast<std::uint64_t>(archive_->descriptor_dims()));
-    for (std::size_t slot = 0; slot < archive_->size(); ++slot) append_archive_record(arch.bytes, slot);
+    all_slots_.resize(archive_->size());
+    std::iota(all_slots_.begin(), all_slots_.end(), std::size_t{0});
+    listed = &all_slots_;
   } else {
     arch.path = archive_log_path(archive_generation_);
     arch.offset = archive_bytes_saved_;
-    arch.bytes.reserve(dirty.size() * rec);
-    for (std::size_t slot : dirty) append_archive_record(arch.bytes, slot);
   }
-  archive_bytes_saved_ = arch.offset + arch.bytes.size();
+  const std::size_t capture_bytes = listed->size() * rec;
+  if (capture_bytes > capture_capacity_) {  // kept across checkpoints; never zero-filled
+    capture_capacity_ = std::max(capture_bytes, capture_capacity_ + capture_capacity_ / 2);
+    capture_buffer_.reset(new char[capture_capacity_]);
+  }
+  archive_->begin_capture(*listed, capture_buffer_.get());
+  arch.more = capture_buffer_.get();
+  arch.more_size = capture_bytes;
+  job.prepare = [archive = archive_.get()] { archive->capture(); };
+  archive_bytes_saved_ = arch.offset + arch.bytes.size() + arch.more_size;
 
   // The dataset only grows, so each checkpoint appends the rows that are new since the last one.
   CheckpointWriter::Append& data = job.appends[1];
@@ -817,7 +819,7 @@ void Run::load_archive(std::uint64_t generation, std::uint64_t bytes, std::uint6
     throw StateError(path.string() + " is not a qdrun archive state file");
   if (P != shape_.param_count() || dims != archive_->descriptor_dims())
     throw StateError(path.string() + " has another shape than this experiment");
-  const std::size_t rec = archive_record_bytes();
+  const std::size_t rec = archive_->record_bytes();
   const std::uint64_t header = sizeof(kArchiveLogMagic) + 2 * sizeof(std::uint64_t);
   if (bytes < header || (bytes - header) % rec != 0) throw StateError("the checkpoint's archive size is inconsistent");
   *archive_ = Archive(archive_->cells(), P, dims);

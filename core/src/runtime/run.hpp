@@ -6,6 +6,7 @@
 #include "runtime/evaluator.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
+#include "runtime/row_copier.hpp"
 
 #include <qd/archive.hpp>
 #include <qd/dataset.hpp>
@@ -109,8 +110,6 @@ class Run {
   void load_dataset(std::uint64_t rows);
   void load_archive(std::uint64_t generation, std::uint64_t bytes, std::uint64_t slots, bool remove_stale);
   std::filesystem::path archive_log_path(std::uint64_t generation) const;
-  std::size_t archive_record_bytes() const;
-  void append_archive_record(std::string& out, std::size_t slot) const;
   void finish_checkpoints();  // waits for the checkpoint in flight; rethrows its write error
   void write_snapshot(const std::filesystem::path& path) const;
   void write_provenance() const;
@@ -136,7 +135,7 @@ class Run {
   // Batch buffers reused across iterations and loops: fresh multi-megabyte allocations every loop
   // cost page faults that showed up as framework overhead.
   Parents parents_;
-  Offspring offspring_;
+  Offspring offspring_[2];  // alternate batches: one is evaluated while the other's copies finish
   Vector recn_;
   Evaluations evaluations_buffer_;
   std::vector<std::uint64_t> seeds_;
@@ -146,11 +145,17 @@ class Run {
   // files; the last submitted checkpoint covers their first *_bytes_saved_ bytes.
   CheckpointWriter::Job checkpoint_job_;
   std::vector<std::size_t> dirty_slots_;
+  std::vector<std::size_t> all_slots_;      // the capture list of a compaction
+  std::unique_ptr<char[]> capture_buffer_;  // the archive records of the checkpoint in flight
+  std::size_t capture_capacity_ = 0;
   std::uint64_t archive_generation_ = 0;
   std::uint64_t archive_bytes_saved_ = 0;
   std::size_t dataset_rows_saved_ = 0;
   std::uint64_t dataset_bytes_saved_ = 0;
   std::unique_ptr<CheckpointWriter> checkpoint_writer_;
+  // Last: destroyed first, completing copies that read offspring_ rows.
+  std::vector<Archive::DeferredCopy> copies_;
+  std::unique_ptr<RowCopier> row_copier_;
 
   int next_loop_ = 0;
   std::uint64_t evaluations_ = 0;

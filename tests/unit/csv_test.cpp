@@ -1,0 +1,76 @@
+#include "runtime/csv.hpp"
+
+#include <qd/errors.hpp>
+
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+using namespace qd::runtime;
+namespace fs = std::filesystem;
+
+namespace {
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// A fresh directory holding archive.csv = "old\n"; returns the file's path.
+fs::path directory_with_old_file(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("qd_csv_test-" + std::to_string(::getpid()) + "-" + name);
+  fs::remove_all(d);
+  fs::create_directories(d);
+  std::ofstream(d / "archive.csv") << "old\n";
+  return d / "archive.csv";
+}
+}  // namespace
+
+TEST(AtomicFile, PiecesAppearTogetherOnlyAtCommit) {
+  const fs::path path = directory_with_old_file("commit");
+  const fs::path dir = path.parent_path();
+  AtomicFile f(path);
+  f.write("a,b\n");
+  f.write(std::string(3 << 20, 'x'));
+  f.write("\nend\n");
+  EXPECT_EQ(slurp(path), "old\n");  // readers still see the previous file
+  f.commit();
+  EXPECT_EQ(slurp(path), "a,b\n" + std::string(3 << 20, 'x') + "\nend\n");
+  EXPECT_FALSE(fs::exists(dir / "archive.csv.tmp"));
+  fs::remove_all(dir);
+}
+
+TEST(AtomicFile, AbandonedWriteLeavesThePreviousFile) {
+  const fs::path path = directory_with_old_file("abandon");
+  const fs::path dir = path.parent_path();
+  {
+    AtomicFile f(path);
+    f.write("half a file");
+  }  // an exception unwound here, say
+  EXPECT_EQ(slurp(path), "old\n");
+  EXPECT_FALSE(fs::exists(dir / "archive.csv.tmp"));
+  fs::remove_all(dir);
+}
+
+TEST(AtomicFile, UnwritableDirectoryIsAnError) {
+  EXPECT_THROW(AtomicFile("/nonexistent-dir-qd/archive.csv"), qd::Error);
+}
+
+TEST(NumberFormat, ShortestRoundTripAfterClearingVectorState) {
+  const double values[] = {0.1, -1.0 / 3.0, 6.02214076e23, 5e-324, 0.9999999999999999, -0.0, 1e-7};
+  for (double v : values) {
+    const std::string before = format_number(v);
+    clear_upper_vector_state();
+    const std::string after = format_number(v);
+    EXPECT_EQ(before, after);
+    EXPECT_EQ(std::strtod(after.c_str(), nullptr), v) << after;
+  }
+  EXPECT_EQ(format_number(0.1), "0.1");
+  EXPECT_EQ(format_number(-1.0 / 3.0), "-0.3333333333333333");
+}
