@@ -112,15 +112,17 @@ Insertion Archive::offer_deferred(std::int64_t cell, const double* params, const
   return result;
 }
 
-void Archive::complete_copy(const DeferredCopy& copy) {
+void Archive::complete_copies(const std::vector<DeferredCopy>& copies) {
   Deferred& d = *deferred_;
-  // A later offer to the same slot has its own copy queued behind this one: skip the dead row.
-  if (d.source[copy.slot].load(std::memory_order_acquire) == copy.source) {
+  for (const DeferredCopy& copy : copies) {
+    // A later offer to the same slot has its own copy queued behind this one: skip the dead row.
+    if (d.source[copy.slot].load(std::memory_order_acquire) != copy.source) continue;
     std::memcpy(params_.data() + copy.slot * param_count_, copy.source, param_count_ * sizeof(double));
     const double* expected = copy.source;
     d.source[copy.slot].compare_exchange_strong(expected, nullptr, std::memory_order_acq_rel);
   }
-  d.pending.fetch_sub(1, std::memory_order_acq_rel);
+  // Once per batch: the loop's thread counts up on the same cache line.
+  d.pending.fetch_sub(copies.size(), std::memory_order_acq_rel);
 }
 
 void Archive::write_record(std::size_t slot, char* out) const {

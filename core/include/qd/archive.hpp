@@ -66,7 +66,7 @@ class QD_EXPORT Archive {
 
   // Deferred copies, so the loop need not wait for memory: offer_deferred() decides exactly as
   // offer() but does not copy the parameters. The slot refers to `params` (the caller's row) and
-  // the copy is appended to `copies`, for one other thread to carry out with complete_copy(), in
+  // the copy is appended to `copies`, for one other thread to carry out with complete_copies(), in
   // order. params(slot) reads the referred row until then, so nothing depends on when copies
   // happen. The caller keeps each referred row valid and unchanged until its copy completed, and
   // completes every copy before offer(), restore(), load() or begin_capture(). Only when
@@ -78,7 +78,7 @@ class QD_EXPORT Archive {
   bool can_defer_copies() const noexcept { return deferred_ != nullptr; }
   Insertion offer_deferred(std::int64_t cell, const double* params, const double* descriptor, double fitness,
                            double recn_error, bool replace, std::vector<DeferredCopy>& copies);
-  void complete_copy(const DeferredCopy& copy);
+  void complete_copies(const std::vector<DeferredCopy>& copies);
   std::size_t pending_copies() const noexcept { return deferred_ ? deferred_->pending.load() : 0; }
 
   // Draws n parents uniformly over occupied cells: without replacement when size() >= n, with

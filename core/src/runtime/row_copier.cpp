@@ -43,7 +43,7 @@ void RowCopier::work() {
     std::vector<Archive::DeferredCopy> batch = std::move(queue_.front());
     queue_.pop_front();
     lock.unlock();
-    for (const auto& c : batch) archive_.complete_copy(c);
+    archive_.complete_copies(batch);
     batch.clear();
     lock.lock();
     spare_.push_back(std::move(batch));
