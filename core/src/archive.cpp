@@ -47,7 +47,7 @@ void Archive::reserve_slots() {
   constexpr std::size_t kMaxReservedBytes = std::size_t{2} << 30;
   if (param_count_ > 0 && n <= kMaxReservedBytes / sizeof(double) / param_count_) {
     params_.reserve(n * param_count_);
-    if (!deferred_) deferred_ = std::make_unique<Deferred>(n);
+    source_.resize(n, nullptr);
   }
 }
 
@@ -100,29 +100,30 @@ Insertion Archive::offer(std::int64_t cell, const double* params, const double* 
 
 Insertion Archive::offer_deferred(std::int64_t cell, const double* params, const double* descriptor, double fitness,
                                   double recn_error, bool replace, std::vector<DeferredCopy>& copies) {
-  QD_CHECK(deferred_ != nullptr, "offer_deferred on an archive that cannot defer copies");
+  QD_CHECK(can_defer_copies(), "offer_deferred on an archive that cannot defer copies");
   Insertion result;
   const std::int64_t slot = place(cell, descriptor, fitness, recn_error, replace, result);
   if (slot >= 0) {
     const auto s = static_cast<std::size_t>(slot);
-    deferred_->pending.fetch_add(1, std::memory_order_relaxed);
-    deferred_->source[s].store(params, std::memory_order_release);
+    source_[s] = params;
+    ++pending_;
     copies.push_back({s, params});
   }
   return result;
 }
 
 void Archive::complete_copies(const std::vector<DeferredCopy>& copies) {
-  Deferred& d = *deferred_;
-  for (const DeferredCopy& copy : copies) {
-    // A later offer to the same slot has its own copy queued behind this one: skip the dead row.
-    if (d.source[copy.slot].load(std::memory_order_acquire) != copy.source) continue;
+  // Only the parameter rows: the loop's thread keeps every other field, and a row copied twice
+  // (two offers to one slot) ends as the later one because batches complete in order.
+  for (const DeferredCopy& copy : copies)
     std::memcpy(params_.data() + copy.slot * param_count_, copy.source, param_count_ * sizeof(double));
-    const double* expected = copy.source;
-    d.source[copy.slot].compare_exchange_strong(expected, nullptr, std::memory_order_acq_rel);
-  }
-  // Once per batch: the loop's thread counts up on the same cache line.
-  d.pending.fetch_sub(copies.size(), std::memory_order_acq_rel);
+}
+
+void Archive::release_copies(const std::vector<DeferredCopy>& copies) {
+  QD_CHECK(pending_ >= copies.size(), "release of copies that were not offered");
+  for (const DeferredCopy& copy : copies)
+    if (source_[copy.slot] == copy.source) source_[copy.slot] = nullptr;  // else a later offer refers
+  pending_ -= copies.size();
 }
 
 void Archive::write_record(std::size_t slot, char* out) const {
@@ -132,7 +133,10 @@ void Archive::write_record(std::size_t slot, char* out) const {
   std::memcpy(out + 16, &fitness_[slot], 8);
   std::memcpy(out + 24, &recn_[slot], 8);
   std::memcpy(out + 32, descriptor(slot), dims_ * sizeof(double));
-  std::memcpy(out + 32 + dims_ * sizeof(double), params(slot), param_count_ * sizeof(double));
+  // Not params(): the capture thread must not read pending_, which the loop updates meanwhile.
+  // source_[slot] itself is stable here: the loop copies a listed slot before it offers to it.
+  const double* row = !source_.empty() && source_[slot] ? source_[slot] : params_.data() + slot * param_count_;
+  std::memcpy(out + 32 + dims_ * sizeof(double), row, param_count_ * sizeof(double));
 }
 
 void Archive::begin_capture(const std::vector<std::size_t>& slots, char* out) {

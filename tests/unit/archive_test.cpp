@@ -111,7 +111,7 @@ TEST(Archive, RestoreRebuildsFromRecordsAndRejectsMisfits) {
 
 // --- Deferred copies (Archive::offer_deferred, runtime::RowCopier) ---
 
-TEST(Archive, DeferredCopyIsReadFromItsSourceUntilCopied) {
+TEST(Archive, DeferredCopyIsReadFromItsSourceUntilReleased) {
   Archive a(10, 3, 2);
   ASSERT_TRUE(a.can_defer_copies());
   double row_a[3] = {1, 2, 3}, row_b[3] = {4, 5, 6}, row_c[3] = {7, 8, 9};
@@ -121,12 +121,15 @@ TEST(Archive, DeferredCopyIsReadFromItsSourceUntilCopied) {
   EXPECT_EQ(a.offer_deferred(4, row_c, kD, 3.0, 0.0, false, copies), Insertion::kRejected);
   ASSERT_EQ(copies.size(), 2u);  // no copy for a rejection
   EXPECT_EQ(a.pending_copies(), 2u);
-  EXPECT_EQ(a.params(0), row_b);   // the latest accepted row, where it is
-  EXPECT_EQ(a.fitness(0), 2.0);    // everything but the parameters is stored at once
-  a.complete_copies({copies[0]});  // the dead row A is skipped, B is still referred to
+  EXPECT_EQ(a.params(0), row_b);  // the latest accepted row, where it is
+  EXPECT_EQ(a.fitness(0), 2.0);   // everything but the parameters is stored at once
+  a.complete_copies({copies[0]});
+  a.release_copies({copies[0]});  // row A's copy: B is still referred to
   EXPECT_EQ(a.params(0), row_b);
   EXPECT_EQ(a.pending_copies(), 1u);
   a.complete_copies({copies[1]});
+  EXPECT_EQ(a.params(0), row_b);  // copied but not released: still read where it is
+  a.release_copies({copies[1]});
   EXPECT_EQ(a.pending_copies(), 0u);
   EXPECT_NE(a.params(0), row_b);  // now the archive's own copy
   row_b[1] = -1.0;                // the source may be reused after its copy

@@ -46,8 +46,8 @@ class QD_EXPORT Archive {
   // Slot accessors, slot < size().
   std::int64_t cell(std::size_t slot) const { return slot_cell_[slot]; }
   const double* params(std::size_t slot) const {
-    if (deferred_)  // a row whose deferred copy has not happened yet is read where it is
-      if (const double* p = deferred_->source[slot].load(std::memory_order_acquire)) return p;
+    if (pending_ != 0)  // a row whose deferred copy is not released yet is read where it is
+      if (const double* p = source_[slot]) return p;
     return params_.data() + slot * param_count_;
   }
   const double* descriptor(std::size_t slot) const { return desc_.data() + slot * dims_; }
@@ -66,20 +66,23 @@ class QD_EXPORT Archive {
 
   // Deferred copies, so the loop need not wait for memory: offer_deferred() decides exactly as
   // offer() but does not copy the parameters. The slot refers to `params` (the caller's row) and
-  // the copy is appended to `copies`, for one other thread to carry out with complete_copies(), in
-  // order. params(slot) reads the referred row until then, so nothing depends on when copies
-  // happen. The caller keeps each referred row valid and unchanged until its copy completed, and
-  // completes every copy before offer(), restore(), load() or begin_capture(). Only when
+  // the copy is appended to `copies`. One other thread carries the batches out in order with
+  // complete_copies() (it writes nothing but the parameter rows), and afterwards the loop's thread
+  // calls release_copies() with the same batch, from which on the slots read the archive's own
+  // rows. params(slot) reads the referred row until then, so nothing depends on when copies
+  // happen. The caller keeps each referred row valid and unchanged until it is released, and
+  // releases every copy before offer(), restore(), save(), load() or begin_capture(). Only when
   // can_defer_copies(): storage for every cell is reserved then, so parameters never move.
   struct DeferredCopy {
     std::size_t slot;
     const double* source;
   };
-  bool can_defer_copies() const noexcept { return deferred_ != nullptr; }
+  bool can_defer_copies() const noexcept { return !source_.empty(); }
   Insertion offer_deferred(std::int64_t cell, const double* params, const double* descriptor, double fitness,
                            double recn_error, bool replace, std::vector<DeferredCopy>& copies);
   void complete_copies(const std::vector<DeferredCopy>& copies);
-  std::size_t pending_copies() const noexcept { return deferred_ ? deferred_->pending.load() : 0; }
+  void release_copies(const std::vector<DeferredCopy>& copies);
+  std::size_t pending_copies() const noexcept { return pending_; }
 
   // Draws n parents uniformly over occupied cells: without replacement when size() >= n, with
   // replacement otherwise (spec 3.3.3.1). Requires size() > 0.
@@ -158,14 +161,9 @@ class QD_EXPORT Archive {
   };
   std::unique_ptr<Capture> capture_;  // made by the first begin_capture()
 
-  struct Deferred {
-    explicit Deferred(std::size_t cells) : source(new std::atomic<const double*>[cells]) {
-      for (std::size_t s = 0; s < cells; ++s) source[s].store(nullptr, std::memory_order_relaxed);
-    }
-    std::unique_ptr<std::atomic<const double*>[]> source;  // per slot: the row to read until copied
-    std::atomic<std::size_t> pending{0};
-  };
-  std::unique_ptr<Deferred> deferred_;  // null when the storage for every cell would be too large
+  // Deferred copies; written by the loop's thread only.
+  std::vector<const double*> source_;  // per slot: the row to read until released (empty: cannot defer)
+  std::size_t pending_ = 0;            // offered, not yet released
 };
 
 }  // namespace qd

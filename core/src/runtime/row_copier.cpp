@@ -31,8 +31,18 @@ void RowCopier::submit(std::vector<Archive::DeferredCopy>& copies) {
 }
 
 void RowCopier::wait(std::uint64_t in_flight) {
-  std::unique_lock<std::mutex> lock(mutex_);
-  done_.wait(lock, [&] { return submitted_ - completed_ <= in_flight; });
+  std::vector<std::vector<Archive::DeferredCopy>> done;
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    done_.wait(lock, [&] { return submitted_ - completed_ <= in_flight; });
+    done.swap(completed_batches_);
+  }
+  for (auto& batch : done) {
+    archive_.release_copies(batch);
+    batch.clear();
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (auto& batch : done) spare_.push_back(std::move(batch));
 }
 
 void RowCopier::work() {
@@ -44,9 +54,8 @@ void RowCopier::work() {
     queue_.pop_front();
     lock.unlock();
     archive_.complete_copies(batch);
-    batch.clear();
     lock.lock();
-    spare_.push_back(std::move(batch));
+    completed_batches_.push_back(std::move(batch));
     ++completed_;
     done_.notify_all();
   }
