@@ -60,8 +60,8 @@ void write_all(int fd, const std::string& content, const fs::path& path) {
   while (left > 0) {
     const ssize_t w = ::write(fd, p, left);
     if (w < 0) {
-      ::close(fd);
-      throw Error("cannot write " + path.string());
+      if (errno == EINTR) continue;
+      throw Error("cannot write " + path.string() + ": " + std::strerror(errno));
     }
     p += w;
     left -= static_cast<std::size_t>(w);
@@ -73,7 +73,12 @@ void write_file_atomic(const fs::path& path, const std::string& content) {
   const fs::path tmp = path.string() + ".tmp";
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) throw Error("cannot create " + tmp.string());
-  write_all(fd, content, tmp);
+  try {
+    write_all(fd, content, tmp);
+  } catch (...) {
+    ::close(fd);
+    throw;
+  }
   if (::close(fd) != 0) throw Error("cannot write " + tmp.string());
   commit_file(tmp, path);
 }
@@ -92,17 +97,7 @@ AtomicFile::~AtomicFile() {
 }
 
 void AtomicFile::write(const std::string& bytes) {
-  const char* p = bytes.data();
-  std::size_t left = bytes.size();
-  while (left > 0) {
-    const ssize_t w = ::write(fd_, p, left);
-    if (w < 0) {
-      if (errno == EINTR) continue;
-      throw Error("cannot write " + tmp_.string() + ": " + std::strerror(errno));
-    }
-    p += w;
-    left -= static_cast<std::size_t>(w);
-  }
+  write_all(fd_, bytes, tmp_);
 #ifdef __linux__
   // Start writing this piece back now, asynchronously (errors surface at the fsync).
   ::sync_file_range(fd_, static_cast<off_t>(written_), static_cast<off_t>(bytes.size()), SYNC_FILE_RANGE_WRITE);
@@ -139,11 +134,21 @@ void rename_durably(const fs::path& tmp, const fs::path& path) {
   }
 }
 
+AppendLog::~AppendLog() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void AppendLog::append(const fs::path& path, const std::string& text) {
+  if (fd_ < 0) {
+    fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    if (fd_ < 0) throw Error("cannot open " + path.string() + " for appending: " + std::strerror(errno));
+  }
+  write_all(fd_, text, path);
+}
+
 void append_to_file(const fs::path& path, const std::string& text) {
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-  if (fd < 0) throw Error("cannot open " + path.string() + " for appending");
-  write_all(fd, text, path);
-  ::close(fd);
+  AppendLog log;
+  log.append(path, text);
 }
 
 }  // namespace qd::runtime

@@ -42,6 +42,20 @@ class AtomicFile {
   std::uint64_t written_ = 0;
 };
 
+// A log the run appends rows to, opened on the first append and then kept open: each append is
+// one write(), so every completed row reaches the OS at once (a killed run keeps it).
+class AppendLog {
+ public:
+  AppendLog() = default;
+  ~AppendLog();
+  AppendLog(const AppendLog&) = delete;
+  AppendLog& operator=(const AppendLog&) = delete;
+  void append(const std::filesystem::path& path, const std::string& text);
+
+ private:
+  int fd_ = -1;
+};
+
 // Appends text and flushes it to the OS (so a killed run keeps every completed row).
 void append_to_file(const std::filesystem::path& path, const std::string& text);
 

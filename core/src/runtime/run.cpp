@@ -510,7 +510,8 @@ void Run::write_metrics_row(int loop, int iteration, const Offspring* off, std::
     row += ',';
     if (off && k < off->metrics.size()) append_number(row, off->metrics[k]);
   }
-  append_to_file(dir_ / "metrics.csv", row + "\n");
+  row += '\n';
+  metrics_log_.append(dir_ / "metrics.csv", row);
 }
 
 void Run::write_snapshot(const fs::path& path) const {

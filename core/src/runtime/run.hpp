@@ -3,6 +3,7 @@
 #pragma once
 
 #include "runtime/checkpoint_writer.hpp"
+#include "runtime/csv.hpp"
 #include "runtime/evaluator.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
@@ -131,6 +132,7 @@ class Run {
   std::unique_ptr<Dataset> dataset_;
   std::vector<std::string> plugin_lines_;
   std::vector<std::string> mutator_metric_names_;
+  AppendLog metrics_log_;  // metrics.csv, one row per iteration
 
   // Batch buffers reused across iterations and loops: fresh multi-megabyte allocations every loop
   // cost page faults that showed up as framework overhead.
