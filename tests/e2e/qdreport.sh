@@ -5,10 +5,12 @@ source "$(dirname "$0")/lib.sh"
 qdrun=$1 src=$2 out=$3
 rm -rf "$out"
 /usr/bin/python3 "$src/share/qdreport" --environments striker --algorithms poms,iso,ps-uniform --seeds 1,2,3 \
-  --loops 2 --set experiment.iterations=2 --max-epochs 5 -o "$out" --qdrun "$qdrun" > "$out.log" 2>&1 \
+  --loops 2 --set experiment.iterations=2 --max-epochs 5 --note "a test note" -o "$out" --qdrun "$qdrun" \
+  > "$out.log" 2>&1 \
   || { cat "$out.log"; exit 1; }
 report=$out/REPORT.md
 grep -q "capped at 5 per loop" "$report"
+grep -q "^- note: a test note$" "$report"
 for alg in poms iso ps-uniform; do
   sizes=$(for s in 1 2 3; do echo $(($(wc -l < "$out/runs/striker-$alg/seed-$s/archive.csv") - 1)); done | sort -n)
   median=$(sed -n 2p <<< "$sizes")
