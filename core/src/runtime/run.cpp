@@ -531,7 +531,6 @@ void Run::write_snapshot(const fs::path& path) const {
   std::iota(slots.begin(), slots.end(), std::size_t{0});
   std::sort(slots.begin(), slots.end(), [&](auto a, auto b) { return archive_->cell(a) < archive_->cell(b); });
   for (std::size_t slot : slots) {
-    clear_upper_vector_state();
     append_int(out, archive_->cell(slot));
     out += ',';
     append_number(out, archive_->fitness(slot));
