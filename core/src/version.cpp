@@ -1,5 +1,7 @@
 #include <qd/version.hpp>
 
+#include "qd_git_revision.h"  // generated at build time
+
 namespace qd {
 const char* build_fingerprint() noexcept {
   return QD_BUILD_FINGERPRINT;
