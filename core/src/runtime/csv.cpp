@@ -68,23 +68,27 @@ void write_all(int fd, const std::string& content, const fs::path& path) {
     left -= static_cast<std::size_t>(w);
   }
 }
+
+// Moves a flushed temporary file over `path`, then flushes the directory so the rename survives
+// a crash.
+void rename_durably(const fs::path& tmp, const fs::path& path) {
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) throw Error("cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message());
+  const int dfd =
+      ::open(path.parent_path().empty() ? "." : path.parent_path().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dfd >= 0) {
+    ::fsync(dfd);
+    ::close(dfd);
+  }
+}
 }  // namespace
 
 void write_file_atomic(const fs::path& path, const std::string& content) {
-  const fs::path tmp = path.string() + ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw Error("cannot create " + tmp.string());
-  try {
-    write_all(fd, content, tmp);
-  } catch (...) {
-    ::close(fd);
-    throw;
-  }
-  if (::close(fd) != 0) throw Error("cannot write " + tmp.string());
-  commit_file(tmp, path);
+  AtomicFile file(path);
+  file.write(content);
+  file.commit();
 }
-
-void rename_durably(const fs::path& tmp, const fs::path& path);
 
 AtomicFile::AtomicFile(fs::path path) : path_(std::move(path)), tmp_(path_.string() + ".tmp") {
   fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
@@ -121,18 +125,6 @@ void commit_file(const fs::path& tmp, const fs::path& path) {
   if (fd < 0 || ::fsync(fd) != 0) throw Error("cannot flush " + tmp.string());
   ::close(fd);
   rename_durably(tmp, path);
-}
-
-void rename_durably(const fs::path& tmp, const fs::path& path) {
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) throw Error("cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message());
-  const int dfd =
-      ::open(path.parent_path().empty() ? "." : path.parent_path().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dfd >= 0) {
-    ::fsync(dfd);
-    ::close(dfd);
-  }
 }
 
 AppendLog::~AppendLog() {
