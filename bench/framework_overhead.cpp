@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,28 @@ double process_cpu_seconds() {
   timespec ts{};
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+// CPU seconds of each thread of this process other than the calling one, by thread name (the
+// run's helpers name themselves), from /proc/self/task/*/schedstat (nanoseconds on a CPU).
+std::string helper_cpu_seconds() {
+  const std::string self = std::to_string(::gettid());
+  std::vector<std::pair<std::string, double>> rows;
+  for (const auto& task : fs::directory_iterator("/proc/self/task")) {
+    if (task.path().filename() == self) continue;
+    std::ifstream comm(task.path() / "comm"), sched(task.path() / "schedstat");
+    std::string name;
+    double ns = 0;
+    if (!std::getline(comm, name) || !(sched >> ns)) continue;
+    rows.emplace_back(name, 1e-9 * ns);
+  }
+  std::sort(rows.begin(), rows.end());
+  std::string out;
+  char buf[96];
+  for (const auto& [name, s] : rows) {
+    std::snprintf(buf, sizeof(buf), "%s%s %.3f s", out.empty() ? "" : ", ", name.c_str(), s);
+    out += buf;
+  }
+  return out.empty() ? "none" : out;
 }
 }  // namespace
 
@@ -133,12 +156,14 @@ int main(int argc, char** argv) {
       run.run();
       const double run_s = seconds_since(t_run);
       const double run_cpu = process_cpu_seconds() - c_run;
+      const std::string helpers = helper_cpu_seconds();  // before the run's threads end with it
       best_bare = std::min(best_bare, bare_s);
       best_run = std::min(best_run, run_s);
       best_bare_cpu = std::min(best_bare_cpu, bare_cpu);
       best_run_cpu = std::min(best_run_cpu, run_cpu);
       std::printf("  repetition %d: bare %.3f s (cpu %.3f), qdrun %.3f s (cpu %.3f), ratio %.4f (cpu %.4f)\n", r + 1,
                   bare_s, bare_cpu, run_s, run_cpu, bare_s / run_s, bare_cpu / run_cpu);
+      std::printf("    helper threads' cpu: %s\n", helpers.c_str());
       std::fflush(stdout);
       fs::remove_all(dir);
     }

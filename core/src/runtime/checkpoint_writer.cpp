@@ -5,6 +5,7 @@
 #include <qd/errors.hpp>
 
 #include <fcntl.h>
+#include <pthread.h>
 #include <unistd.h>
 #include <cerrno>
 #include <cstring>
@@ -65,6 +66,7 @@ void CheckpointWriter::wait() {
 }
 
 void CheckpointWriter::work() {
+  ::pthread_setname_np(::pthread_self(), "qd-checkpoint");  // named for top -H and the benchmark
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {
     wake_.wait(lock, [&] { return stop_ || pending_; });

@@ -1,5 +1,6 @@
 #include "runtime/row_copier.hpp"
 
+#include <pthread.h>
 #include <utility>
 
 namespace qd::runtime {
@@ -46,6 +47,7 @@ void RowCopier::wait(std::uint64_t in_flight) {
 }
 
 void RowCopier::work() {
+  ::pthread_setname_np(::pthread_self(), "qd-row-copier");  // named for top -H and the benchmark
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {
     wake_.wait(lock, [&] { return stop_ || !queue_.empty(); });
