@@ -31,6 +31,12 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 }
 
 // CPU seconds of the whole process (all threads: the run's checkpoint writer counts too).
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t m = v.size() / 2;
+  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+}
+
 double process_cpu_seconds() {
   timespec ts{};
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
@@ -143,6 +149,7 @@ int main(int argc, char** argv) {
     // printed too.
     double best_bare = 1e300, best_run = 1e300, best_bare_cpu = 1e300, best_run_cpu = 1e300;
     std::size_t params_count = 0;
+    std::vector<double> rep_ratios;
     for (int r = 0; r < repeat; ++r) {
       const fs::path dir = out / ("rep-" + std::to_string(r));
       RunOptions opt;
@@ -161,6 +168,7 @@ int main(int argc, char** argv) {
       best_run = std::min(best_run, run_s);
       best_bare_cpu = std::min(best_bare_cpu, bare_cpu);
       best_run_cpu = std::min(best_run_cpu, run_cpu);
+      rep_ratios.push_back(bare_s / run_s);
       std::printf("  repetition %d: bare %.3f s (cpu %.3f), qdrun %.3f s (cpu %.3f), ratio %.4f (cpu %.4f)\n", r + 1,
                   bare_s, bare_cpu, run_s, run_cpu, bare_s / run_s, bare_cpu / run_cpu);
       std::printf("    helper threads' cpu: %s\n", helpers.c_str());
@@ -173,9 +181,9 @@ int main(int argc, char** argv) {
                 1e6 * best_bare / static_cast<double>(bare_steps));
     std::printf(
         "bare_loop_evals_per_s=%.1f qdrun_evals_per_s=%.1f ratio=%.4f bare_us_per_eval=%.2f qdrun_us_per_eval=%.2f "
-        "cpu_ratio=%.4f (best of %d alternating repetitions)\n",
+        "cpu_ratio=%.4f (best of %d alternating repetitions) median_repetition_ratio=%.4f\n",
         n / best_bare, n / best_run, best_bare / best_run, 1e6 * best_bare / n, 1e6 * best_run / n,
-        best_bare_cpu / best_run_cpu, repeat);
+        best_bare_cpu / best_run_cpu, repeat, median(rep_ratios));
     fs::remove_all(out);
     return 0;
   } catch (const std::exception& e) {

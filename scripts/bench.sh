@@ -20,7 +20,7 @@ echo "# framework overhead, analytic arm, 32x32 policy (1379 parameters), 1 work
 echo "#   ps-uniform: the bare loop draws the very same policies, so the ratio is the framework alone"
 echo "#   MAPE-Iso: qdrun also pays the plugin's mutation (1379 normals per offspring)"
 for exp in arm-uniform arm-iso; do
-  $fo bench/experiments/$exp.toml --repeat 3                                              # 1 002 000 evaluations, 50 steps
+  $fo bench/experiments/$exp.toml --repeat 5                                              # 1 002 000 evaluations, 50 steps
   $fo bench/experiments/$exp.toml --repeat 3 --set environment.steps=200 --set experiment.loops=11  # 202 000, 200 steps
 done
 echo "# environments: ps-uniform through qdrun vs a bare rollout loop, 1 and 2 workers (issue 3)"

@@ -1,4 +1,5 @@
-// Configuration errors: each must name the place (file:line:column or --set) and the key.
+// Configuration errors: each must name the place (file:line:column or --set) and the key. Also the
+// files a run writes from a resolved configuration (archive.csv).
 #include "runtime/experiment.hpp"
 #include "runtime/run.hpp"
 
@@ -6,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <fstream>
 
 using namespace qd;
@@ -174,4 +176,53 @@ TEST(Config, LatentLargerThanParameterCountIsAConfigError) {
     EXPECT_NE(msg.find("latent size 100000 is larger than the policy's parameter count 1379"), std::string::npos)
         << msg;
   }
+}
+
+// archive.csv parsed back holds every elite once, in cell order, with every number exactly as the
+// archive holds it (shortest round-trip formatting; more than 200 elites of 1379 parameters).
+TEST(ArchiveCsv, ParsesBackToTheArchiveInCellOrder) {
+  const fs::path dir = fs::temp_directory_path() / ("qd-archive-csv-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const std::string text = replace(replace(std::string(kValid), "loops = 2", "loops = 2\nseed = 7"),
+                                   "initial_samples = 10", "initial_samples = 3000") +
+                           "\n[descriptor]\ntype = \"arm-endpoint\"\nbins = 30\n";
+  Experiment ex = resolve(Document::parse(text, "exp.toml"), registry());
+  RunOptions opt;
+  opt.directory = dir.string();
+  qd::runtime::Run run(std::move(ex), registry(), std::move(opt));
+  run.create_directory();
+  ASSERT_TRUE(run.run());
+  const Archive& a = run.archive();
+  const std::size_t P = a.param_count();
+  ASSERT_GT(a.size(), std::size_t{200});
+
+  std::ifstream in(dir / "archive.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line));
+  EXPECT_EQ(line.rfind("index,objective,measures_0,measures_1,recn_error,solution_0,", 0), 0u);
+  std::size_t rows = 0;
+  std::int64_t previous = -1;
+  while (std::getline(in, line)) {
+    std::vector<double> v;
+    for (std::size_t pos = 0;;) {
+      const std::size_t c = line.find(',', pos);
+      v.push_back(std::stod(line.substr(pos, c == std::string::npos ? std::string::npos : c - pos)));
+      if (c == std::string::npos) break;
+      pos = c + 1;
+    }
+    ASSERT_EQ(v.size(), 5 + P) << "row " << rows;
+    const auto cell = static_cast<std::int64_t>(v[0]);
+    EXPECT_GT(cell, previous) << "rows must be in increasing cell order";
+    previous = cell;
+    ASSERT_TRUE(a.occupied(cell));
+    const auto slot = static_cast<std::size_t>(a.slot_of(cell));
+    EXPECT_EQ(v[1], a.fitness(slot));
+    EXPECT_EQ(v[2], a.descriptor(slot)[0]);
+    EXPECT_EQ(v[3], a.descriptor(slot)[1]);
+    EXPECT_EQ(v[4], a.recn_error(slot));
+    for (std::size_t k = 0; k < P; ++k) ASSERT_EQ(v[5 + k], a.params(slot)[k]) << "cell " << cell << " k " << k;
+    ++rows;
+  }
+  EXPECT_EQ(rows, a.size());
+  fs::remove_all(dir);
 }
