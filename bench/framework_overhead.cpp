@@ -31,17 +31,18 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 }
 
 // CPU seconds of the whole process (all threads: the run's checkpoint writer counts too).
+double process_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const std::size_t m = v.size() / 2;
   return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
 }
 
-double process_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
 // CPU seconds of each thread of this process other than the calling one, by thread name (the
 // run's helpers name themselves), from /proc/self/task/*/schedstat (nanoseconds on a CPU).
 std::string helper_cpu_seconds() {
