@@ -37,6 +37,23 @@ double process_cpu_seconds() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
+// Involuntary context switches of the calling thread (preemptions) so far.
+long involuntary_switches() {
+  std::ifstream in("/proc/thread-self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("nonvoluntary_ctxt_switches:", 0) == 0) return std::stol(line.substr(line.find(':') + 1));
+  return -1;
+}
+
+// Seconds the calling thread has waited on a run queue while runnable (schedstat field 2).
+double runqueue_wait_seconds() {
+  std::ifstream in("/proc/thread-self/schedstat");
+  double on_cpu = 0, waiting = 0;
+  in >> on_cpu >> waiting;
+  return 1e-9 * waiting;
+}
+
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const std::size_t m = v.size() / 2;
@@ -159,12 +176,16 @@ int main(int argc, char** argv) {
       params_count = run.policy_shape().param_count();
       run.create_directory();
       const auto [bare_s, bare_cpu] = bare_loop(run);
+      const long sw_run = involuntary_switches();
+      const double wait_run = runqueue_wait_seconds();
       const double c_run = process_cpu_seconds();
       const auto t_run = std::chrono::steady_clock::now();
       run.run();
       const double run_s = seconds_since(t_run);
       const double run_cpu = process_cpu_seconds() - c_run;
       const std::string helpers = helper_cpu_seconds();  // before the run's threads end with it
+      const long preempted = involuntary_switches() - sw_run;
+      const double waited = runqueue_wait_seconds() - wait_run;
       best_bare = std::min(best_bare, bare_s);
       best_run = std::min(best_run, run_s);
       best_bare_cpu = std::min(best_bare_cpu, bare_cpu);
@@ -172,7 +193,8 @@ int main(int argc, char** argv) {
       rep_ratios.push_back(bare_s / run_s);
       std::printf("  repetition %d: bare %.3f s (cpu %.3f), qdrun %.3f s (cpu %.3f), ratio %.4f (cpu %.4f)\n", r + 1,
                   bare_s, bare_cpu, run_s, run_cpu, bare_s / run_s, bare_cpu / run_cpu);
-      std::printf("    helper threads' cpu: %s\n", helpers.c_str());
+      std::printf("    helper threads' cpu: %s; loop thread preempted %ld times, waited %.3f s for a CPU\n",
+                  helpers.c_str(), preempted, waited);
       std::fflush(stdout);
       fs::remove_all(dir);
     }

@@ -136,16 +136,17 @@ TEST(Archive, DeferredCopyIsReadFromItsSourceUntilReleased) {
   EXPECT_EQ(std::vector<double>(a.params(0), a.params(0) + 3), (std::vector<double>{4, 5, 6}));
 }
 
-TEST(Archive, DeferredCopiesOnAThreadGiveTheArchiveOfImmediateCopies) {
-  // The run's pattern: two alternating offspring buffers, one batch of copies in flight while the
-  // next batch is made; selection reads parents in between. Same decisions, same archive bytes.
+// The run's pattern: two alternating offspring buffers, one batch of copies in flight while the
+// next batch is made; selection reads parents in between. Same decisions, same archive bytes,
+// whether the copier polls or is woken, and whichever thread (copier or loop) copies a batch.
+void expect_deferred_copies_equal_immediate_copies(bool poll) {
   const std::size_t P = 300, batch = 64, cells = 200;
   Archive direct(static_cast<std::int64_t>(cells), P, 2), deferred(static_cast<std::int64_t>(cells), P, 2);
   Matrix buffers[2];
   std::vector<Archive::DeferredCopy> copies;
   Rng rng(7, Stream::kPlugin);
   {
-    runtime::RowCopier copier(deferred);
+    runtime::RowCopier copier(deferred, poll);
     for (int it = 0; it < 200; ++it) {
       auto& theta = buffers[it & 1];
       copier.wait(1);
@@ -175,6 +176,14 @@ TEST(Archive, DeferredCopiesOnAThreadGiveTheArchiveOfImmediateCopies) {
   direct.save(a);
   deferred.save(b);
   EXPECT_EQ(a.str(), b.str());
+}
+
+TEST(Archive, DeferredCopiesOnAPollingThreadGiveTheArchiveOfImmediateCopies) {
+  expect_deferred_copies_equal_immediate_copies(true);
+}
+
+TEST(Archive, DeferredCopiesOnAWokenThreadGiveTheArchiveOfImmediateCopies) {
+  expect_deferred_copies_equal_immediate_copies(false);
 }
 
 TEST(ArchiveDeathTest, ImmediateOfferWhileCopiesArePendingAborts) {

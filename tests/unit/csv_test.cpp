@@ -74,3 +74,38 @@ TEST(NumberFormat, ShortestRoundTripAfterClearingVectorState) {
   EXPECT_EQ(format_number(0.1), "0.1");
   EXPECT_EQ(format_number(-1.0 / 3.0), "-0.3333333333333333");
 }
+
+TEST(AppendLog, RowsReachTheFileOnFlushAndOnDestruction) {
+  const fs::path path = directory_with_old_file("append");
+  const fs::path dir = path.parent_path();
+  {
+    AppendLog log(std::chrono::hours(1));
+    log.append(path, "a\n");
+    log.append(path, "b\n");
+    // Buffered: within the flush interval nothing is written yet (the old content stays).
+    EXPECT_EQ(slurp(path), "old\n");
+    log.flush();
+    EXPECT_EQ(slurp(path), "old\na\nb\n");
+    log.flush();  // nothing pending: no change
+    log.append(path, "c\n");
+  }
+  EXPECT_EQ(slurp(path), "old\na\nb\nc\n");
+  fs::remove_all(dir);
+}
+
+TEST(AppendLog, ZeroIntervalWritesEveryAppend) {
+  const fs::path path = directory_with_old_file("append-zero");
+  AppendLog log(std::chrono::seconds(0));
+  log.append(path, "a\n");
+  EXPECT_EQ(slurp(path), "old\na\n");
+  log.append(path, "b\n");
+  EXPECT_EQ(slurp(path), "old\na\nb\n");
+  fs::remove_all(path.parent_path());
+}
+
+TEST(AppendLog, AppendToFileWritesAtOnce) {
+  const fs::path path = directory_with_old_file("append-once");
+  append_to_file(path, "row\n");
+  EXPECT_EQ(slurp(path), "old\nrow\n");
+  fs::remove_all(path.parent_path());
+}

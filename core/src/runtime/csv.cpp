@@ -128,6 +128,10 @@ void commit_file(const fs::path& tmp, const fs::path& path) {
 }
 
 AppendLog::~AppendLog() {
+  try {
+    flush();
+  } catch (const Error&) {
+  }
   if (fd_ >= 0) ::close(fd_);
 }
 
@@ -135,12 +139,26 @@ void AppendLog::append(const fs::path& path, const std::string& text) {
   if (fd_ < 0) {
     fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
     if (fd_ < 0) throw Error("cannot open " + path.string() + " for appending: " + std::strerror(errno));
+    path_ = path;
+    last_flush_ = std::chrono::steady_clock::now();
   }
-  write_all(fd_, text, path);
+  QD_CHECK(path == path_, "one AppendLog appends to one file");
+  pending_ += text;
+  if (std::chrono::steady_clock::now() - last_flush_ >= flush_interval_) flush();
+}
+
+void AppendLog::flush() {
+  if (fd_ < 0 || pending_.empty()) return;
+  last_flush_ = std::chrono::steady_clock::now();
+  std::string text;
+  text.swap(pending_);
+  write_all(fd_, text, path_);
+  text.clear();
+  pending_.swap(text);  // keeps the capacity
 }
 
 void append_to_file(const fs::path& path, const std::string& text) {
-  AppendLog log;
+  AppendLog log(std::chrono::seconds(0));
   log.append(path, text);
 }
 

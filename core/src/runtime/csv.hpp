@@ -1,6 +1,7 @@
 // Text output helpers: exact number formatting and atomic file replacement.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -43,18 +44,29 @@ class AtomicFile {
   std::uint64_t written_ = 0;
 };
 
-// A log the run appends rows to, opened on the first append and then kept open: each append is
-// one write(), so every completed row reaches the OS at once (a killed run keeps it).
+// A log the run appends rows to, opened on the first append and then kept open. Rows are
+// buffered and written at least every kFlushInterval (so `tail -f` follows the run), on flush()
+// and on destruction: a write() per row cost 10 µs, 5 % of the framework's overhead on the
+// analytic arm. A killed run loses at most the last interval's rows, which --resume would cut
+// anyway: the run flushes before each checkpoint, and the checkpoint records the file's size.
 class AppendLog {
  public:
-  AppendLog() = default;
-  ~AppendLog();
+  static constexpr std::chrono::seconds kFlushInterval{1};
+
+  explicit AppendLog(std::chrono::steady_clock::duration flush_interval = kFlushInterval)
+      : flush_interval_(flush_interval) {}
+  ~AppendLog();  // flushes; errors are dropped (nothing to report them to)
   AppendLog(const AppendLog&) = delete;
   AppendLog& operator=(const AppendLog&) = delete;
   void append(const std::filesystem::path& path, const std::string& text);
+  void flush();
 
  private:
+  std::chrono::steady_clock::duration flush_interval_;
+  std::filesystem::path path_;
   int fd_ = -1;
+  std::string pending_;
+  std::chrono::steady_clock::time_point last_flush_{};
 };
 
 // Appends text and flushes it to the OS (so a killed run keeps every completed row).

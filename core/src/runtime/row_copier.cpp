@@ -1,11 +1,16 @@
 #include "runtime/row_copier.hpp"
 
 #include <pthread.h>
+#include <algorithm>
 #include <utility>
+
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
 
 namespace qd::runtime {
 
-RowCopier::RowCopier(Archive& archive) : archive_(archive), thread_([this] { work(); }) {}
+RowCopier::RowCopier(Archive& archive, bool poll) : archive_(archive), poll_(poll), thread_([this] { work(); }) {}
 
 RowCopier::~RowCopier() {
   wait();
@@ -18,8 +23,14 @@ RowCopier::~RowCopier() {
 }
 
 void RowCopier::submit(std::vector<Archive::DeferredCopy>& copies) {
+  bool wake = false;
+  const auto now = std::chrono::steady_clock::now();
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (submitted_ > 0)
+      poll_interval_ =
+          std::clamp<std::chrono::steady_clock::duration>((now - last_submit_) / kPollsPerBatch, kMinPoll, kMaxPoll);
+    last_submit_ = now;
     queue_.push_back(std::move(copies));
     ++submitted_;
     copies.clear();
@@ -27,15 +38,41 @@ void RowCopier::submit(std::vector<Archive::DeferredCopy>& copies) {
       copies.swap(spare_.back());
       spare_.pop_back();
     }
+    wake = blocked_;
+    if (wake) ++wakeups_;
   }
-  wake_.notify_one();
+  if (wake) wake_.notify_one();
+}
+
+bool RowCopier::copy_next(std::unique_lock<std::mutex>& lock) {
+  if (queue_.empty() || copying_) return false;
+  std::vector<Archive::DeferredCopy> batch = std::move(queue_.front());
+  queue_.pop_front();
+  copying_ = true;
+  lock.unlock();
+  archive_.complete_copies(batch);
+  lock.lock();
+  copying_ = false;
+  completed_batches_.push_back(std::move(batch));
+  ++completed_;
+  return true;
 }
 
 void RowCopier::wait(std::uint64_t in_flight) {
   std::vector<std::vector<Archive::DeferredCopy>> done;
   {
     std::unique_lock<std::mutex> lock(mutex_);
-    done_.wait(lock, [&] { return submitted_ - completed_ <= in_flight; });
+    while (submitted_ - completed_ > in_flight) {
+      if (copy_next(lock)) continue;
+      // The copier is copying a batch (at most one batch's rows): spin rather than block, which
+      // would need a wake-up in return.
+      lock.unlock();
+#if defined(__SSE2__)
+      _mm_pause();
+#endif
+      std::this_thread::yield();
+      lock.lock();
+    }
     done.swap(completed_batches_);
   }
   for (auto& batch : done) {
@@ -46,20 +83,33 @@ void RowCopier::wait(std::uint64_t in_flight) {
   for (auto& batch : done) spare_.push_back(std::move(batch));
 }
 
+std::uint64_t RowCopier::wakeups() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return wakeups_;
+}
+
 void RowCopier::work() {
   ::pthread_setname_np(::pthread_self(), "qd-row-copier");  // named for top -H and the benchmark
+  using Clock = std::chrono::steady_clock;
   std::unique_lock<std::mutex> lock(mutex_);
+  Clock::time_point last_work = Clock::now();
   for (;;) {
-    wake_.wait(lock, [&] { return stop_ || !queue_.empty(); });
-    if (queue_.empty()) return;
-    std::vector<Archive::DeferredCopy> batch = std::move(queue_.front());
-    queue_.pop_front();
+    if (copy_next(lock)) {
+      if (poll_) last_work = Clock::now();
+      continue;
+    }
+    if (stop_ && queue_.empty() && !copying_) return;
+    if (!poll_ || Clock::now() - last_work > kIdleTimeout) {
+      blocked_ = true;
+      wake_.wait(lock, [&] { return stop_ || (!queue_.empty() && !copying_); });
+      blocked_ = false;
+      last_work = Clock::now();
+      continue;
+    }
+    const auto interval = poll_interval_;
     lock.unlock();
-    archive_.complete_copies(batch);
+    std::this_thread::sleep_for(interval);
     lock.lock();
-    completed_batches_.push_back(std::move(batch));
-    ++completed_;
-    done_.notify_all();
   }
 }
 

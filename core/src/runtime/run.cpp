@@ -346,14 +346,17 @@ void Run::map_elites_loop(int loop) {
   Vector& recn = recn_;
   // Accepted policies reach the archive's storage on a background thread (RowCopier) while the
   // next batch is evaluated; until then the archive reads them from the offspring buffer, which
-  // is therefore not refilled before its copies are done.
+  // is therefore not refilled before its copies are done. Where the evaluators leave a core free
+  // the copier polls instead of being woken per batch (see RowCopier).
   const bool defer = archive_->can_defer_copies();
-  if (defer && !row_copier_) row_copier_ = std::make_unique<RowCopier>(*archive_);
+  if (defer && !row_copier_)
+    row_copier_ = std::make_unique<RowCopier>(*archive_, evaluator_->workers() < hardware_workers());
   Evaluations& ev = evaluations_buffer_;
   std::vector<std::uint64_t>& seeds = seeds_;
   seeds.resize(batch);
   std::vector<Insertion>& outcomes = outcomes_;
   outcomes.resize(batch);
+  const bool by_fitness = s.insertion == "fitness";
   for (int it = 0; it < s.iterations; ++it) {
     if (mutator_->uses_parents()) {
       if (archive_->size() == 0) throw Error("the archive is empty after loop 0: no initial sample could be described");
@@ -397,7 +400,7 @@ void Run::map_elites_loop(int loop) {
       }
       bool replace = false;
       if (archive_->occupied(cell)) {
-        if (s.insertion == "fitness")
+        if (by_fitness)
           replace = ev.fitness[i] > archive_->fitness(static_cast<std::size_t>(archive_->slot_of(cell)));
         else
           replace = coin.uniform() < s.replace_probability;
@@ -515,43 +518,65 @@ void Run::write_metrics_row(int loop, int iteration, const Offspring* off, std::
 }
 
 void Run::write_snapshot(const fs::path& path) const {
-  const GridSpec grid = desc_->grid();
   const std::size_t P = shape_.param_count();
   const std::size_t dims = archive_->descriptor_dims();
+  const bool with_params = ex_.settings.snapshot_parameters;
   // pyribs-style columns: index, objective, measures_*, solution_*; plus the stored recn error.
-  std::string out = "index,objective";
-  for (std::size_t d = 0; d < dims; ++d) out += ",measures_" + std::to_string(d);
-  out += ",recn_error";
-  if (ex_.settings.snapshot_parameters)
-    for (std::size_t k = 0; k < P; ++k) out += ",solution_" + std::to_string(k);
-  out += '\n';
+  std::string header = "index,objective";
+  for (std::size_t d = 0; d < dims; ++d) header += ",measures_" + std::to_string(d);
+  header += ",recn_error";
+  if (with_params)
+    for (std::size_t k = 0; k < P; ++k) header += ",solution_" + std::to_string(k);
+  header += '\n';
   AtomicFile file(path);
+  file.write(header);
   // Rows in cell order, so two archives with the same content give the same file.
   std::vector<std::size_t> slots(archive_->size());
   std::iota(slots.begin(), slots.end(), std::size_t{0});
   std::sort(slots.begin(), slots.end(), [&](auto a, auto b) { return archive_->cell(a) < archive_->cell(b); });
-  for (std::size_t slot : slots) {
-    append_int(out, archive_->cell(slot));
-    out += ',';
-    append_number(out, archive_->fitness(slot));
-    for (std::size_t d = 0; d < dims; ++d) {
+  auto format_rows = [&](std::size_t begin, std::size_t end, std::string& out) {
+    out.clear();
+    for (std::size_t r = begin; r < end; ++r) {
+      const std::size_t slot = slots[r];
+      append_int(out, archive_->cell(slot));
       out += ',';
-      append_number(out, archive_->descriptor(slot)[d]);
-    }
-    out += ',';
-    append_number(out, archive_->recn_error(slot));
-    if (ex_.settings.snapshot_parameters)
-      for (std::size_t k = 0; k < P; ++k) {
+      append_number(out, archive_->fitness(slot));
+      for (std::size_t d = 0; d < dims; ++d) {
         out += ',';
-        append_number(out, archive_->params(slot)[k]);
+        append_number(out, archive_->descriptor(slot)[d]);
       }
-    out += '\n';
-    if (out.size() > (std::size_t{4} << 20)) {
-      file.write(out);
-      out.clear();
+      out += ',';
+      append_number(out, archive_->recn_error(slot));
+      if (with_params)
+        for (std::size_t k = 0; k < P; ++k) {
+          out += ',';
+          append_number(out, archive_->params(slot)[k]);
+        }
+      out += '\n';
+    }
+  };
+  // Formatting (40 ns a number) is most of the cost, and nothing else runs on the loop's side at
+  // the end of a run, so two threads format a pair of chunks of about 4 MB at a time, which are
+  // then written in order: memory stays at two chunks and the file is the same.
+  const std::size_t row_bytes = 24 * (4 + dims + (with_params ? P : 0));  // an estimate
+  const std::size_t chunk_rows = std::max<std::size_t>(1, (std::size_t{4} << 20) / row_bytes);
+  std::string chunks[2];
+  std::exception_ptr errors[2];
+  if (!snapshot_pool_) snapshot_pool_ = std::make_unique<WorkerPool>(2);
+  for (std::size_t begin = 0; begin < slots.size(); begin += 2 * chunk_rows) {
+    snapshot_pool_->run(2, [&](std::size_t k) {
+      try {
+        const std::size_t b = std::min(slots.size(), begin + k * chunk_rows);
+        format_rows(b, std::min(slots.size(), b + chunk_rows), chunks[k]);
+      } catch (...) {
+        errors[k] = std::current_exception();
+      }
+    });
+    for (std::size_t k = 0; k < 2; ++k) {
+      if (errors[k]) std::rethrow_exception(errors[k]);
+      if (!chunks[k].empty()) file.write(chunks[k]);
     }
   }
-  file.write(out);
   file.commit();
 }
 
@@ -699,6 +724,7 @@ void Run::write_checkpoint(int loop) {
   // copied on that thread too (Archive::capture; the loop copies a slot itself only if it is about
   // to overwrite it first). Waits for the previous checkpoint first.
   if (!checkpoint_writer_) checkpoint_writer_ = std::make_unique<CheckpointWriter>();
+  metrics_log_.flush();  // the checkpoint records the logs' sizes
   checkpoint_writer_->wait();
   CheckpointWriter::Job& job = checkpoint_job_;
   job.checkpoint = dir_ / kCheckpointFile;
