@@ -47,12 +47,20 @@ class CheckpointWriter {
   // Bytes for an append-only file: written at `offset`, its committed size so far. Anything past
   // the offset comes from a checkpoint that never committed and is cut away first. `bytes` go
   // first, then `more_size` bytes at `more` (a buffer the caller keeps, filled by `prepare`).
+  //
+  // `direct`: a whole new file (offset 0, no `bytes`) whose `more` is aligned to kDirectAlignment
+  // and readable up to the next multiple of it. It is written with O_DIRECT, bypassing the page
+  // cache: copying ~28 MB per loop into it was 60 % of the writer's CPU time on the analytic arm,
+  // work that slowed the loop on the other core. Where the file system refuses O_DIRECT the
+  // ordinary path is taken.
+  static constexpr std::size_t kDirectAlignment = 4096;
   struct Append {
     std::filesystem::path path;
     std::uint64_t offset = 0;
     std::string bytes;
     const char* more = nullptr;
     std::size_t more_size = 0;
+    bool direct = false;
   };
   struct Job {
     std::function<void()> prepare;                    // runs on the writer thread before anything is written
@@ -62,7 +70,8 @@ class CheckpointWriter {
     std::vector<std::filesystem::path> remove_after;  // files the new checkpoint no longer needs
   };
 
-  CheckpointWriter();
+  // `direct_io` false writes direct appends through the page cache too (tests of that path).
+  explicit CheckpointWriter(bool direct_io = true);
   ~CheckpointWriter();  // waits for the checkpoint in flight (errors are dropped: nothing to report to)
   CheckpointWriter(const CheckpointWriter&) = delete;
   CheckpointWriter& operator=(const CheckpointWriter&) = delete;
@@ -75,8 +84,9 @@ class CheckpointWriter {
 
  private:
   void work();
-  static void write(const Job& job);
+  void write(const Job& job) const;
 
+  const bool direct_io_;
   std::mutex mutex_;
   std::condition_variable wake_, idle_;
   Job job_;

@@ -751,9 +751,6 @@ void Run::write_checkpoint(int loop) {
     }
     arch.path = archive_log_path(archive_generation_);
     arch.offset = 0;
-    arch.bytes.append(kArchiveLogMagic, sizeof(kArchiveLogMagic));
-    append_raw(arch.bytes, static_cast<std::uint64_t>(shape_.param_count()));
-    append_raw(arch.bytes, static_cast<std::uint64_t>(archive_->descriptor_dims()));
     all_slots_.resize(archive_->size());
     std::iota(all_slots_.begin(), all_slots_.end(), std::size_t{0});
     listed = &all_slots_;
@@ -761,14 +758,32 @@ void Run::write_checkpoint(int loop) {
     arch.path = archive_log_path(archive_generation_);
     arch.offset = archive_bytes_saved_;
   }
+  // A new generation is one aligned buffer, [header | records | padding], written with O_DIRECT;
+  // an append writes the records alone.
   const std::size_t capture_bytes = listed->size() * rec;
-  if (capture_bytes > capture_capacity_) {  // kept across checkpoints; never zero-filled
-    capture_capacity_ = std::max(capture_bytes, capture_capacity_ + capture_capacity_ / 2);
-    capture_buffer_.reset(new char[capture_capacity_]);
+  const std::size_t align = CheckpointWriter::kDirectAlignment;
+  const std::size_t padded = (header + capture_bytes + align - 1) / align * align;
+  if (padded > capture_capacity_) {  // kept across checkpoints
+    capture_capacity_ = std::max(padded, (capture_capacity_ + capture_capacity_ / 2 + align - 1) / align * align);
+    capture_buffer_.reset(static_cast<char*>(std::aligned_alloc(align, capture_capacity_)));
+    if (!capture_buffer_) throw std::bad_alloc();
   }
-  archive_->begin_capture(*listed, capture_buffer_.get());
-  arch.more = capture_buffer_.get();
-  arch.more_size = capture_bytes;
+  char* const base = capture_buffer_.get();
+  archive_->begin_capture(*listed, base + header);
+  if (compact) {
+    std::string head(kArchiveLogMagic, sizeof(kArchiveLogMagic));
+    append_raw(head, static_cast<std::uint64_t>(shape_.param_count()));
+    append_raw(head, static_cast<std::uint64_t>(archive_->descriptor_dims()));
+    std::memcpy(base, head.data(), header);
+    std::memset(base + header + capture_bytes, 0, padded - header - capture_bytes);
+    arch.more = base;
+    arch.more_size = header + capture_bytes;
+    arch.direct = true;
+  } else {
+    arch.more = base + header;
+    arch.more_size = capture_bytes;
+    arch.direct = false;
+  }
   job.prepare = [archive = archive_.get()] { archive->capture(); };
   archive_bytes_saved_ = arch.offset + arch.bytes.size() + arch.more_size;
 

@@ -16,6 +16,7 @@
 #include <qd/mutator.hpp>
 #include <qd/representation.hpp>
 
+#include <cstdlib>
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -148,8 +149,13 @@ class Run {
   // files; the last submitted checkpoint covers their first *_bytes_saved_ bytes.
   CheckpointWriter::Job checkpoint_job_;
   std::vector<std::size_t> dirty_slots_;
-  std::vector<std::size_t> all_slots_;      // the capture list of a compaction
-  std::unique_ptr<char[]> capture_buffer_;  // the archive records of the checkpoint in flight
+  std::vector<std::size_t> all_slots_;  // the capture list of a compaction
+  struct FreeBuffer {
+    void operator()(char* p) const { std::free(p); }
+  };
+  // The archive records of the checkpoint in flight, after room for a generation's header;
+  // aligned for O_DIRECT (CheckpointWriter::Append::direct).
+  std::unique_ptr<char, FreeBuffer> capture_buffer_;
   std::size_t capture_capacity_ = 0;
   std::uint64_t archive_generation_ = 0;
   std::uint64_t archive_bytes_saved_ = 0;
