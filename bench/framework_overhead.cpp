@@ -46,6 +46,15 @@ long involuntary_switches() {
   return -1;
 }
 
+// Moves of the calling thread from one CPU to another so far (each leaves its caches behind).
+long cpu_migrations() {
+  std::ifstream in("/proc/thread-self/sched");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("se.nr_migrations", 0) == 0) return std::stol(line.substr(line.find(':') + 1));
+  return -1;
+}
+
 // Seconds the calling thread has waited on a run queue while runnable (schedstat field 2).
 double runqueue_wait_seconds() {
   std::ifstream in("/proc/thread-self/schedstat");
@@ -176,7 +185,7 @@ int main(int argc, char** argv) {
       params_count = run.policy_shape().param_count();
       run.create_directory();
       const auto [bare_s, bare_cpu] = bare_loop(run);
-      const long sw_run = involuntary_switches();
+      const long sw_run = involuntary_switches(), mig_run = cpu_migrations();
       const double wait_run = runqueue_wait_seconds();
       const double c_run = process_cpu_seconds();
       const auto t_run = std::chrono::steady_clock::now();
@@ -184,7 +193,7 @@ int main(int argc, char** argv) {
       const double run_s = seconds_since(t_run);
       const double run_cpu = process_cpu_seconds() - c_run;
       const std::string helpers = helper_cpu_seconds();  // before the run's threads end with it
-      const long preempted = involuntary_switches() - sw_run;
+      const long preempted = involuntary_switches() - sw_run, migrated = cpu_migrations() - mig_run;
       const double waited = runqueue_wait_seconds() - wait_run;
       best_bare = std::min(best_bare, bare_s);
       best_run = std::min(best_run, run_s);
@@ -193,8 +202,10 @@ int main(int argc, char** argv) {
       rep_ratios.push_back(bare_s / run_s);
       std::printf("  repetition %d: bare %.3f s (cpu %.3f), qdrun %.3f s (cpu %.3f), ratio %.4f (cpu %.4f)\n", r + 1,
                   bare_s, bare_cpu, run_s, run_cpu, bare_s / run_s, bare_cpu / run_cpu);
-      std::printf("    helper threads' cpu: %s; loop thread preempted %ld times, waited %.3f s for a CPU\n",
-                  helpers.c_str(), preempted, waited);
+      std::printf(
+          "    helper threads' cpu: %s; loop thread preempted %ld times, moved to another CPU %ld times, "
+          "waited %.3f s for a CPU\n",
+          helpers.c_str(), preempted, migrated, waited);
       std::fflush(stdout);
       fs::remove_all(dir);
     }

@@ -39,7 +39,6 @@ void RowCopier::submit(std::vector<Archive::DeferredCopy>& copies) {
       spare_.pop_back();
     }
     wake = blocked_;
-    if (wake) ++wakeups_;
   }
   if (wake) wake_.notify_one();
 }
@@ -81,11 +80,6 @@ void RowCopier::wait(std::uint64_t in_flight) {
   }
   std::lock_guard<std::mutex> lock(mutex_);
   for (auto& batch : done) spare_.push_back(std::move(batch));
-}
-
-std::uint64_t RowCopier::wakeups() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  return wakeups_;
 }
 
 void RowCopier::work() {

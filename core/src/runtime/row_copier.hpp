@@ -7,8 +7,9 @@
 // 2-vCPU KVM guest, 0.16 s per 10^6 evaluations of the analytic arm (bench/framework_overhead).
 // So with `poll` (a core is left free by the evaluators) the copier does not block while batches
 // keep coming: it checks the queue kPollsPerBatch times per interval between submits, on its own
-// timer, and blocks only after kIdleTimeout without work, after which submit() wakes it. Without `poll` every core runs
-// an evaluator, which frequent polls would preempt, and submit() wakes the copier each time.
+// timer, and blocks only after kIdleTimeout without work, after which submit() wakes it. Without
+// `poll` every core runs an evaluator, which frequent polls would preempt, and submit() wakes the
+// copier each time.
 #pragma once
 
 #include <qd/archive.hpp>
@@ -41,9 +42,6 @@ class RowCopier {
   // ones (Archive::release_copies). The calling thread must be the loop's.
   void wait(std::uint64_t in_flight = 0);
 
-  // Wake-ups of a blocked copier so far (for tests and benchmarks).
-  std::uint64_t wakeups() const;
-
  private:
   void work();
   // Copies the oldest queued batch if no batch is being copied, so batches complete in order.
@@ -52,12 +50,12 @@ class RowCopier {
 
   Archive& archive_;
   const bool poll_;
-  mutable std::mutex mutex_;
+  std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<std::vector<Archive::DeferredCopy>> queue_;
   std::vector<std::vector<Archive::DeferredCopy>> completed_batches_;  // to release
   std::vector<std::vector<Archive::DeferredCopy>> spare_;
-  std::uint64_t submitted_ = 0, completed_ = 0, wakeups_ = 0;
+  std::uint64_t submitted_ = 0, completed_ = 0;
   std::chrono::steady_clock::time_point last_submit_{};
   std::chrono::steady_clock::duration poll_interval_ = kMinPoll;  // the copier's sleep between polls
   bool copying_ = false;                                          // a batch is being copied, by either thread

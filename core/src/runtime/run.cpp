@@ -518,65 +518,43 @@ void Run::write_metrics_row(int loop, int iteration, const Offspring* off, std::
 }
 
 void Run::write_snapshot(const fs::path& path) const {
+  const GridSpec grid = desc_->grid();
   const std::size_t P = shape_.param_count();
   const std::size_t dims = archive_->descriptor_dims();
-  const bool with_params = ex_.settings.snapshot_parameters;
   // pyribs-style columns: index, objective, measures_*, solution_*; plus the stored recn error.
-  std::string header = "index,objective";
-  for (std::size_t d = 0; d < dims; ++d) header += ",measures_" + std::to_string(d);
-  header += ",recn_error";
-  if (with_params)
-    for (std::size_t k = 0; k < P; ++k) header += ",solution_" + std::to_string(k);
-  header += '\n';
+  std::string out = "index,objective";
+  for (std::size_t d = 0; d < dims; ++d) out += ",measures_" + std::to_string(d);
+  out += ",recn_error";
+  if (ex_.settings.snapshot_parameters)
+    for (std::size_t k = 0; k < P; ++k) out += ",solution_" + std::to_string(k);
+  out += '\n';
   AtomicFile file(path);
-  file.write(header);
   // Rows in cell order, so two archives with the same content give the same file.
   std::vector<std::size_t> slots(archive_->size());
   std::iota(slots.begin(), slots.end(), std::size_t{0});
   std::sort(slots.begin(), slots.end(), [&](auto a, auto b) { return archive_->cell(a) < archive_->cell(b); });
-  auto format_rows = [&](std::size_t begin, std::size_t end, std::string& out) {
-    out.clear();
-    for (std::size_t r = begin; r < end; ++r) {
-      const std::size_t slot = slots[r];
-      append_int(out, archive_->cell(slot));
+  for (std::size_t slot : slots) {
+    append_int(out, archive_->cell(slot));
+    out += ',';
+    append_number(out, archive_->fitness(slot));
+    for (std::size_t d = 0; d < dims; ++d) {
       out += ',';
-      append_number(out, archive_->fitness(slot));
-      for (std::size_t d = 0; d < dims; ++d) {
-        out += ',';
-        append_number(out, archive_->descriptor(slot)[d]);
-      }
-      out += ',';
-      append_number(out, archive_->recn_error(slot));
-      if (with_params)
-        for (std::size_t k = 0; k < P; ++k) {
-          out += ',';
-          append_number(out, archive_->params(slot)[k]);
-        }
-      out += '\n';
+      append_number(out, archive_->descriptor(slot)[d]);
     }
-  };
-  // Formatting (40 ns a number) is most of the cost, and nothing else runs on the loop's side at
-  // the end of a run, so two threads format a pair of chunks of about 4 MB at a time, which are
-  // then written in order: memory stays at two chunks and the file is the same.
-  const std::size_t row_bytes = 24 * (4 + dims + (with_params ? P : 0));  // an estimate
-  const std::size_t chunk_rows = std::max<std::size_t>(1, (std::size_t{4} << 20) / row_bytes);
-  std::string chunks[2];
-  std::exception_ptr errors[2];
-  if (!snapshot_pool_) snapshot_pool_ = std::make_unique<WorkerPool>(2);
-  for (std::size_t begin = 0; begin < slots.size(); begin += 2 * chunk_rows) {
-    snapshot_pool_->run(2, [&](std::size_t k) {
-      try {
-        const std::size_t b = std::min(slots.size(), begin + k * chunk_rows);
-        format_rows(b, std::min(slots.size(), b + chunk_rows), chunks[k]);
-      } catch (...) {
-        errors[k] = std::current_exception();
+    out += ',';
+    append_number(out, archive_->recn_error(slot));
+    if (ex_.settings.snapshot_parameters)
+      for (std::size_t k = 0; k < P; ++k) {
+        out += ',';
+        append_number(out, archive_->params(slot)[k]);
       }
-    });
-    for (std::size_t k = 0; k < 2; ++k) {
-      if (errors[k]) std::rethrow_exception(errors[k]);
-      if (!chunks[k].empty()) file.write(chunks[k]);
+    out += '\n';
+    if (out.size() > (std::size_t{4} << 20)) {
+      file.write(out);
+      out.clear();
     }
   }
+  file.write(out);
   file.commit();
 }
 

@@ -133,8 +133,7 @@ class Run {
   std::unique_ptr<Dataset> dataset_;
   std::vector<std::string> plugin_lines_;
   std::vector<std::string> mutator_metric_names_;
-  AppendLog metrics_log_;                              // metrics.csv, one row per iteration
-  mutable std::unique_ptr<WorkerPool> snapshot_pool_;  // formats archive.csv on two threads
+  AppendLog metrics_log_;  // metrics.csv, one row per iteration
 
   // Batch buffers reused across iterations and loops: fresh multi-megabyte allocations every loop
   // cost page faults that showed up as framework overhead.
