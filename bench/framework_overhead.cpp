@@ -37,22 +37,23 @@ double process_cpu_seconds() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
-// Involuntary context switches of the calling thread (preemptions) so far.
-long involuntary_switches() {
-  std::ifstream in("/proc/thread-self/status");
+// The number after "key ... :" in a "key: value" file of /proc/thread-self (-1 if absent).
+long thread_counter(const char* file, const std::string& key) {
+  std::ifstream in(std::string("/proc/thread-self/") + file);
   std::string line;
   while (std::getline(in, line))
-    if (line.rfind("nonvoluntary_ctxt_switches:", 0) == 0) return std::stol(line.substr(line.find(':') + 1));
+    if (line.rfind(key, 0) == 0) return std::stol(line.substr(line.find(':') + 1));
   return -1;
+}
+
+// Involuntary context switches of the calling thread (preemptions) so far.
+long involuntary_switches() {
+  return thread_counter("status", "nonvoluntary_ctxt_switches:");
 }
 
 // Moves of the calling thread from one CPU to another so far (each leaves its caches behind).
 long cpu_migrations() {
-  std::ifstream in("/proc/thread-self/sched");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("se.nr_migrations", 0) == 0) return std::stol(line.substr(line.find(':') + 1));
-  return -1;
+  return thread_counter("sched", "se.nr_migrations");
 }
 
 // Seconds the calling thread has waited on a run queue while runnable (schedstat field 2).
