@@ -1,4 +1,5 @@
 #include "runtime/checkpoint_writer.hpp"
+#include "files.hpp"
 
 #include <gtest/gtest.h>
 
@@ -7,7 +8,6 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
-#include <sstream>
 #include <string>
 
 using qd::runtime::CheckpointWriter;
@@ -15,12 +15,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using qd::test::slurp;
 
 struct FreeBuffer {
   void operator()(char* p) const { std::free(p); }

@@ -1,4 +1,5 @@
 #include "runtime/csv.hpp"
+#include "files.hpp"
 
 #include <qd/errors.hpp>
 
@@ -15,12 +16,7 @@ using namespace qd::runtime;
 namespace fs = std::filesystem;
 
 namespace {
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using qd::test::slurp;
 
 // A fresh directory holding archive.csv = "old\n"; returns the file's path.
 fs::path directory_with_old_file(const std::string& name) {
