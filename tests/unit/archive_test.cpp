@@ -136,10 +136,12 @@ TEST(Archive, DeferredCopyIsReadFromItsSourceUntilReleased) {
   EXPECT_EQ(std::vector<double>(a.params(0), a.params(0) + 3), (std::vector<double>{4, 5, 6}));
 }
 
-// The run's pattern: two alternating offspring buffers, one batch of copies in flight while the
-// next batch is made; selection reads parents in between. Same decisions, same archive bytes,
-// whether the copier polls or is woken, and whichever thread (copier or loop) copies a batch.
-void expect_deferred_copies_equal_immediate_copies(bool poll) {
+// The run's patterns: two alternating offspring buffers, one batch of copies in flight while the
+// next batch is made; or (a streaming evaluator) one buffer whose copies are submitted in parts as
+// rows are inserted and are all done before it is refilled. Selection reads parents in between.
+// Same decisions, same archive bytes, whether the copier polls or is woken, and whichever thread
+// (copier or loop) copies a batch.
+void expect_deferred_copies_equal_immediate_copies(bool poll, bool single_buffer = false) {
   const std::size_t P = 300, batch = 64, cells = 200;
   Archive direct(static_cast<std::int64_t>(cells), P, 2), deferred(static_cast<std::int64_t>(cells), P, 2);
   Matrix buffers[2];
@@ -148,8 +150,8 @@ void expect_deferred_copies_equal_immediate_copies(bool poll) {
   {
     runtime::RowCopier copier(deferred, poll);
     for (int it = 0; it < 200; ++it) {
-      auto& theta = buffers[it & 1];
-      copier.wait(1);
+      auto& theta = buffers[single_buffer ? 0 : (it & 1)];
+      copier.wait(single_buffer ? 0 : 1);
       theta.resize(static_cast<Eigen::Index>(batch), static_cast<Eigen::Index>(P));
       rng.fill_uniform(theta.data(), static_cast<std::size_t>(theta.size()), -1.0, 1.0);
       if (deferred.size() > 0) {  // parents read while copies may be in flight
@@ -166,8 +168,9 @@ void expect_deferred_copies_equal_immediate_copies(bool poll) {
         const double* row = theta.row(static_cast<Eigen::Index>(i)).data();
         ASSERT_EQ(deferred.offer_deferred(cell, row, kD, 0.0, 0.0, replace, copies),
                   direct.offer(cell, row, kD, 0.0, 0.0, replace));
+        if (single_buffer && i % 24 == 23) copier.submit(copies);  // parts of 24, 24 and 16 rows
       }
-      copier.submit(copies);
+      if (!copies.empty()) copier.submit(copies);
     }
     copier.wait();
   }
@@ -184,6 +187,10 @@ TEST(Archive, DeferredCopiesOnAPollingThreadGiveTheArchiveOfImmediateCopies) {
 
 TEST(Archive, DeferredCopiesOnAWokenThreadGiveTheArchiveOfImmediateCopies) {
   expect_deferred_copies_equal_immediate_copies(false);
+}
+
+TEST(Archive, DeferredCopiesSubmittedInPartsFromOneBufferGiveTheArchiveOfImmediateCopies) {
+  expect_deferred_copies_equal_immediate_copies(true, true);
 }
 
 TEST(ArchiveDeathTest, ImmediateOfferWhileCopiesArePendingAborts) {

@@ -20,6 +20,14 @@ void expect_same(const runtime::Evaluations& a, const runtime::Evaluations& b) {
   EXPECT_EQ(a.steps, b.steps);
   EXPECT_EQ(a.status, b.status);
 }
+
+// `rows` policies of `shape` with parameters drawn from U(-1, 1).
+Matrix random_params(const PolicyShape& shape, Eigen::Index rows, std::uint64_t seed) {
+  Matrix params(rows, static_cast<Eigen::Index>(shape.param_count()));
+  Rng rng(seed, Stream::kInitial);
+  rng.fill_uniform(params.data(), static_cast<std::size_t>(params.size()), -1, 1);
+  return params;
+}
 }  // namespace
 
 TEST(Evaluator, OneAndThreeWorkersGiveIdenticalTracesAndCells) {
@@ -27,9 +35,7 @@ TEST(Evaluator, OneAndThreeWorkersGiveIdenticalTracesAndCells) {
   arm::ArmEnvironment env(ec, BuildContext{});
   arm::EndpointDescriptor desc(defaults_of(arm::kEndpointParams, "descriptor"), BuildContext{});
   const PolicyShape shape(6, {8, 8}, 3);
-  Matrix params(97, static_cast<Eigen::Index>(shape.param_count()));
-  Rng rng(11, Stream::kInitial);
-  rng.fill_uniform(params.data(), static_cast<std::size_t>(params.size()), -1, 1);
+  Matrix params = random_params(shape, 97, 11);
   params(5, 3) = std::nan("");  // a NaN action must give an invalid evaluation, not a crash
   std::vector<std::uint64_t> seeds(97, 0);
   runtime::ThreadEvaluator one(env, desc, shape, 1), three(env, desc, shape, 3);
@@ -39,6 +45,40 @@ TEST(Evaluator, OneAndThreeWorkersGiveIdenticalTracesAndCells) {
   expect_same(a, b);
   EXPECT_EQ(a.status[5], EvalStatus::kInvalidAction);
   EXPECT_EQ(a.cells[5], -1);
+}
+
+// A serial evaluator hands the batch over in shrinking leading parts, each final when reported
+// (what the loop inserts then is what a whole-batch evaluation gives); threads report once.
+TEST(Evaluator, SerialStreamingReportsFinalLeadingRowsInShrinkingParts) {
+  arm::ArmEnvironment env(defaults_of(arm::kArmParams, "environment"), BuildContext{});
+  arm::EndpointDescriptor desc(defaults_of(arm::kEndpointParams, "descriptor"), BuildContext{});
+  const PolicyShape shape(6, {8, 8}, 3);
+  Matrix params = random_params(shape, 200, 13);
+  std::vector<std::uint64_t> seeds(200, 0);
+  runtime::ThreadEvaluator serial(env, desc, shape, 1), two(env, desc, shape, 2);
+  runtime::Evaluations whole, streamed;
+  serial.evaluate(params, seeds, whole);
+
+  ASSERT_TRUE(serial.streams_rows());
+  std::vector<std::size_t> ends;
+  serial.evaluate_streaming(params, seeds, streamed, [&](std::size_t end) {
+    // Rows [0, end) already hold their final values.
+    for (std::size_t i = ends.empty() ? 0 : ends.back(); i < end; ++i) {
+      EXPECT_EQ(streamed.cells[i], whole.cells[i]) << "row " << i;
+      EXPECT_EQ(streamed.fitness[i], whole.fitness[i]) << "row " << i;
+    }
+    ends.push_back(end);
+  });
+  expect_same(whole, streamed);
+  // A quarter of the remaining rows each time, at least 4: 50, 37, 28, 21, 16, 12, 9, 6, 5, 4, 4, 4, 4.
+  const std::vector<std::size_t> expected{50, 87, 115, 136, 152, 164, 173, 179, 184, 188, 192, 196, 200};
+  EXPECT_EQ(ends, expected);
+
+  EXPECT_FALSE(two.streams_rows());
+  ends.clear();
+  two.evaluate_streaming(params, seeds, streamed, [&](std::size_t end) { ends.push_back(end); });
+  EXPECT_EQ(ends, std::vector<std::size_t>{200});
+  expect_same(whole, streamed);
 }
 
 TEST(Evaluator, ArmDescriptorOfAStretchedArm) {
@@ -61,9 +101,7 @@ TEST(Evaluator, ProcessesEqualThreads) {
   arm::ArmEnvironment env(defaults_of(arm::kArmParams, "environment"), BuildContext{});
   arm::EndpointDescriptor desc(defaults_of(arm::kEndpointParams, "descriptor"), BuildContext{});
   const PolicyShape shape(6, {8, 8}, 3);
-  Matrix params(131, static_cast<Eigen::Index>(shape.param_count()));
-  Rng rng(12, Stream::kInitial);
-  rng.fill_uniform(params.data(), static_cast<std::size_t>(params.size()), -1, 1);
+  Matrix params = random_params(shape, 131, 12);
   params(7, 2) = std::nan("");
   std::vector<std::uint64_t> seeds(131, 0);
   runtime::ThreadEvaluator serial(env, desc, shape, 1);

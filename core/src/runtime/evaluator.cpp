@@ -121,8 +121,34 @@ void RowEvaluator::run(const double* params, const std::uint64_t* seeds, std::si
 
 Evaluator::~Evaluator() = default;
 
+void Evaluator::evaluate_streaming(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds,
+                                   Evaluations& out, const RowsReady& ready) {
+  evaluate(params, episode_seeds, out);
+  ready(static_cast<std::size_t>(params.rows()));
+}
+
 ThreadEvaluator::ThreadEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers)
     : env_(env), desc_(desc), shape_(shape), dims_(desc.grid().shape.size()), pool_(workers) {}
+
+void ThreadEvaluator::evaluate_rows(const Matrix& params, const std::uint64_t* seeds, std::size_t begin,
+                                    std::size_t end, Evaluations& out) {
+  RolloutBatch b;
+  b.shape = &shape_;
+  b.params = &params;
+  b.episode_seeds = seeds;
+  b.begin = begin;
+  b.end = end;
+  for (std::size_t i = begin; i < end; ++i) traces_[i].clear();
+  env_.rollout(b, traces_.data());
+  for (std::size_t i = begin; i < end; ++i) {
+    const Trace& t = traces_[i];
+    out.status[i] = t.status;
+    out.steps[i] = t.steps;
+    out.fitness[i] = t.fitness;
+    if (t.status == EvalStatus::kOk)
+      desc_.describe(&t, 1, &out.cells[i], out.descriptors.row(static_cast<Eigen::Index>(i)).data());
+  }
+}
 
 void ThreadEvaluator::evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, Evaluations& out) {
   const auto n = static_cast<std::size_t>(params.rows());
@@ -135,23 +161,28 @@ void ThreadEvaluator::evaluate(const Matrix& params, const std::vector<std::uint
   const std::size_t chunk = workers == 1 ? std::max<std::size_t>(n, 1) : std::max<std::size_t>(1, n / (workers * 8));
   const std::size_t chunks = (n + chunk - 1) / chunk;
   pool_.run(chunks, [&](std::size_t c) {
-    RolloutBatch b;
-    b.shape = &shape_;
-    b.params = &params;
-    b.episode_seeds = seeds.data();
-    b.begin = c * chunk;
-    b.end = std::min(n, b.begin + chunk);
-    for (std::size_t i = b.begin; i < b.end; ++i) traces_[i].clear();
-    env_.rollout(b, traces_.data());
-    for (std::size_t i = b.begin; i < b.end; ++i) {
-      const Trace& t = traces_[i];
-      out.status[i] = t.status;
-      out.steps[i] = t.steps;
-      out.fitness[i] = t.fitness;
-      if (t.status == EvalStatus::kOk)
-        desc_.describe(&t, 1, &out.cells[i], out.descriptors.row(static_cast<Eigen::Index>(i)).data());
-    }
+    const std::size_t begin = c * chunk;
+    evaluate_rows(params, seeds.data(), begin, std::min(n, begin + chunk), out);
   });
+}
+
+void ThreadEvaluator::evaluate_streaming(const Matrix& params, const std::vector<std::uint64_t>& seeds,
+                                         Evaluations& out, const RowsReady& ready) {
+  if (!streams_rows()) {
+    Evaluator::evaluate_streaming(params, seeds, out, ready);
+    return;
+  }
+  const auto n = static_cast<std::size_t>(params.rows());
+  QD_CHECK(seeds.size() == n, "one episode seed per row");
+  out.reset(n, dims_);
+  if (traces_.size() < n) traces_.resize(n);
+  for (std::size_t begin = 0; begin < n;) {
+    const std::size_t end = std::min(n, begin + std::max(kMinStreamRows, (n - begin) / 4));
+    evaluate_rows(params, seeds.data(), begin, end, out);
+    ready(end);
+    begin = end;
+  }
+  if (n == 0) ready(0);
 }
 
 std::string resolve_backend(const std::string& requested, int workers) {

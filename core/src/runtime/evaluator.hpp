@@ -83,6 +83,18 @@ class Evaluator {
   virtual int workers() const noexcept = 0;
   virtual const char* backend() const noexcept = 0;
   virtual void evaluate(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, Evaluations& out) = 0;
+
+  // Called on the loop's thread each time rows [0, end) of the batch are final, with increasing
+  // `end`, the last time with end == rows.
+  using RowsReady = std::function<void(std::size_t end)>;
+  // evaluate() that hands over finished leading rows while the rest of the batch is evaluated, so
+  // the loop can insert (and have copied) the first rows while their parameters are still in this
+  // core's cache. The default reports the whole batch once, at the end.
+  virtual void evaluate_streaming(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds,
+                                  Evaluations& out, const RowsReady& ready);
+  // True when evaluate_streaming() reports a batch in several parts, in which case rows are final
+  // before evaluate_streaming() returns.
+  virtual bool streams_rows() const noexcept { return false; }
   // MPI worker ranks: serve rank 0 until it stops the job. Other backends have no remote side.
   virtual void serve() {}
 };
@@ -120,8 +132,17 @@ class ThreadEvaluator final : public Evaluator {
   int workers() const noexcept override { return pool_.size(); }
   const char* backend() const noexcept override { return "threads"; }
   void evaluate(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, Evaluations& out) override;
+  // Serial: parts shrink towards the end of the batch (a quarter of the remaining rows, at least
+  // kMinStreamRows), so little is left to consume once the batch is done.
+  void evaluate_streaming(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, Evaluations& out,
+                          const RowsReady& ready) override;
+  bool streams_rows() const noexcept override { return pool_.size() == 1; }
+  static constexpr std::size_t kMinStreamRows = 4;
 
  private:
+  // Rollouts and descriptors of rows [begin, end); `out` is already sized for the batch.
+  void evaluate_rows(const Matrix& params, const std::uint64_t* seeds, std::size_t begin, std::size_t end,
+                     Evaluations& out);
   const Environment& env_;
   const Descriptor& desc_;
   PolicyShape shape_;

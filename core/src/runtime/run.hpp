@@ -138,7 +138,7 @@ class Run {
   // Batch buffers reused across iterations and loops: fresh multi-megabyte allocations every loop
   // cost page faults that showed up as framework overhead.
   Parents parents_;
-  Offspring offspring_[2];  // alternate batches: one is evaluated while the other's copies finish
+  Offspring offspring_[2];  // alternate batches unless the evaluator streams rows (see map_elites_loop)
   Vector recn_;
   Evaluations evaluations_buffer_;
   std::vector<std::uint64_t> seeds_;
