@@ -92,8 +92,8 @@ class Evaluator {
   // core's cache. The default reports the whole batch once, at the end.
   virtual void evaluate_streaming(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds,
                                   Evaluations& out, const RowsReady& ready);
-  // True when evaluate_streaming() reports a batch in several parts, in which case rows are final
-  // before evaluate_streaming() returns.
+  // True when evaluate_streaming() reports a batch in several parts while it is still being
+  // evaluated (the default reports it once, when it is done).
   virtual bool streams_rows() const noexcept { return false; }
   // MPI worker ranks: serve rank 0 until it stops the job. Other backends have no remote side.
   virtual void serve() {}
