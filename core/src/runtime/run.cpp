@@ -358,8 +358,8 @@ void Run::map_elites_loop(int loop) {
   outcomes.resize(batch);
   const bool by_fitness = s.insertion == "fitness";
   // A streaming evaluator hands rows over while the batch runs, so the copies are done soon after
-  // it and the next batch can reuse the same buffer, which then stays in this core's cache (two
-  // alternating 2.2 MB buffers of the 32x32 arm benchmark do not fit a 4 MB L2 together).
+  // it and the next batch can reuse the same buffer, which then stays largely in this core's
+  // cache (a 2.2 MB buffer of the 32x32 arm benchmark is about a 2 MB L2; two are twice that).
   const bool single_buffer = defer && evaluator_->streams_rows();
   for (int it = 0; it < s.iterations; ++it) {
     if (mutator_->uses_parents()) {
