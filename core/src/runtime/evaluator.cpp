@@ -150,11 +150,17 @@ void ThreadEvaluator::evaluate_rows(const Matrix& params, const std::uint64_t* s
   }
 }
 
-void ThreadEvaluator::evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, Evaluations& out) {
+std::size_t ThreadEvaluator::begin_batch(const Matrix& params, const std::vector<std::uint64_t>& seeds,
+                                         Evaluations& out) {
   const auto n = static_cast<std::size_t>(params.rows());
   QD_CHECK(seeds.size() == n, "one episode seed per row");
   out.reset(n, dims_);
   if (traces_.size() < n) traces_.resize(n);
+  return n;
+}
+
+void ThreadEvaluator::evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, Evaluations& out) {
+  const std::size_t n = begin_batch(params, seeds, out);
   // Chunks keep dispatch at one virtual call per chunk while leaving enough chunks for dynamic
   // load balancing; with one worker the whole batch is one call.
   const std::size_t workers = static_cast<std::size_t>(pool_.size());
@@ -172,10 +178,7 @@ void ThreadEvaluator::evaluate_streaming(const Matrix& params, const std::vector
     Evaluator::evaluate_streaming(params, seeds, out, ready);
     return;
   }
-  const auto n = static_cast<std::size_t>(params.rows());
-  QD_CHECK(seeds.size() == n, "one episode seed per row");
-  out.reset(n, dims_);
-  if (traces_.size() < n) traces_.resize(n);
+  const std::size_t n = begin_batch(params, seeds, out);
   for (std::size_t begin = 0; begin < n;) {
     const std::size_t end = std::min(n, begin + std::max(kMinStreamRows, (n - begin) / 4));
     evaluate_rows(params, seeds.data(), begin, end, out);

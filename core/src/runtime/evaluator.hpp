@@ -140,6 +140,8 @@ class ThreadEvaluator final : public Evaluator {
   static constexpr std::size_t kMinStreamRows = 4;
 
  private:
+  // Checks the seeds, sizes `out` and the trace scratch for the batch; returns its row count.
+  std::size_t begin_batch(const Matrix& params, const std::vector<std::uint64_t>& seeds, Evaluations& out);
   // Rollouts and descriptors of rows [begin, end); `out` is already sized for the batch.
   void evaluate_rows(const Matrix& params, const std::uint64_t* seeds, std::size_t begin, std::size_t end,
                      Evaluations& out);

@@ -29,7 +29,7 @@ void RowCopier::submit(std::vector<Archive::DeferredCopy>& copies) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (submitted_ > 0)
       poll_interval_ =
-          std::clamp<std::chrono::steady_clock::duration>((now - last_submit_) / kPollsPerBatch, kMinPoll, kMaxPoll);
+          std::clamp<std::chrono::steady_clock::duration>((now - last_submit_) / kPollsPerSubmit, kMinPoll, kMaxPoll);
     last_submit_ = now;
     queue_.push_back(std::move(copies));
     ++submitted_;

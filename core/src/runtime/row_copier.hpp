@@ -7,7 +7,7 @@
 // Waking a blocked thread costs the waker an inter-processor interrupt: 32 µs per submit() on a
 // 2-vCPU KVM guest, 0.16 s per 10^6 evaluations of the analytic arm (bench/framework_overhead).
 // So with `poll` (a core is left free by the evaluators) the copier does not block while batches
-// keep coming: it checks the queue kPollsPerBatch times per interval between submits, on its own
+// keep coming: it checks the queue kPollsPerSubmit times per interval between submits, on its own
 // timer, and blocks only after kIdleTimeout without work, after which submit() wakes it. Without
 // `poll` every core runs an evaluator, which frequent polls would preempt, and submit() wakes the
 // copier each time.
@@ -27,7 +27,7 @@ namespace qd::runtime {
 
 class RowCopier {
  public:
-  static constexpr int kPollsPerBatch = 4;
+  static constexpr int kPollsPerSubmit = 4;
   static constexpr std::chrono::microseconds kMinPoll{50}, kMaxPoll{2000};
   static constexpr std::chrono::milliseconds kIdleTimeout{20};
 
