@@ -23,6 +23,8 @@ for exp in arm-uniform arm-iso; do
   $fo bench/experiments/$exp.toml --repeat 5                                              # 1 002 000 evaluations, 50 steps
   $fo bench/experiments/$exp.toml --repeat 3 --set environment.steps=200 --set experiment.loops=11  # 202 000, 200 steps
 done
+echo "# number formatting for archive.csv: write_number vs std::to_chars, ns per number"
+build/bin/qd_number_format
 echo "# environments: ps-uniform through qdrun vs a bare rollout loop, 1 and 2 workers (issue 3)"
 for env in striker striker-mix-scale bipedal-walker bipedal-walker-mix-scale bipedal-kicker bipedal-kicker-mix-scale; do
   loops=51                    # 102 000 evaluations

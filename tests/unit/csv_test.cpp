@@ -6,10 +6,12 @@
 #include <gtest/gtest.h>
 
 #include <unistd.h>
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 
 using namespace qd::runtime;
@@ -104,4 +106,65 @@ TEST(AppendLog, AppendToFileWritesAtOnce) {
   append_to_file(path, "row\n");
   EXPECT_EQ(slurp(path), "old\nrow\n");
   fs::remove_all(path.parent_path());
+}
+
+namespace {
+// Piece b of the test text: its number repeated (b % 7 + 1) * 1000 times, so pieces differ in
+// length and in how long they take.
+char* format_piece(std::size_t b, char* out) {
+  const std::string text = std::to_string(b) + ';';
+  for (std::size_t i = 0; i < (b % 7 + 1) * 1000; ++i) out = std::copy(text.begin(), text.end(), out);
+  return out;
+}
+constexpr std::size_t kPieceBytes = 7 * 1000 * 8;
+}  // namespace
+
+TEST(FormatInOrder, PiecesFromManyThreadsArriveInOrder) {
+  std::string expected;
+  std::string buf(kPieceBytes, '\0');
+  for (std::size_t b = 0; b < 200; ++b) expected.append(buf.data(), format_piece(b, buf.data()));
+  for (unsigned threads : {1u, 2u, 5u}) {
+    std::string got;
+    std::size_t writes = 0;
+    format_in_order(200, kPieceBytes, threads, format_piece, [&](const char* text, std::size_t size) {
+      got.append(text, size);
+      ++writes;
+    });
+    EXPECT_EQ(writes, 200u) << threads << " threads";
+    EXPECT_TRUE(got == expected) << threads << " threads";
+  }
+}
+
+TEST(FormatInOrder, NoPiecesNoWrites) {
+  bool wrote = false;
+  format_in_order(0, 16, 4, format_piece, [&](const char*, std::size_t) { wrote = true; });
+  EXPECT_FALSE(wrote);
+}
+
+TEST(FormatInOrder, FormatErrorStopsTheWorkAndReachesTheCaller) {
+  std::string got, expected;
+  std::string buf(kPieceBytes, '\0');
+  for (std::size_t b = 0; b < 30; ++b) expected.append(buf.data(), format_piece(b, buf.data()));
+  auto failing = [](std::size_t b, char* out) -> char* {
+    if (b == 30) throw std::runtime_error("piece 30 failed");
+    return format_piece(b, out);
+  };
+  try {
+    format_in_order(100, kPieceBytes, 3, failing, [&](const char* text, std::size_t size) { got.append(text, size); });
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "piece 30 failed");
+  }
+  // What was written is an in-order prefix that never reaches the failed piece.
+  EXPECT_LE(got.size(), expected.size());
+  EXPECT_EQ(got, expected.substr(0, got.size()));
+}
+
+TEST(FormatInOrder, WriteErrorReachesTheCaller) {
+  std::size_t writes = 0;
+  auto failing_write = [&](const char*, std::size_t) {
+    if (++writes == 3) throw qd::Error("disk full");
+  };
+  EXPECT_THROW(format_in_order(50, kPieceBytes, 4, format_piece, failing_write), qd::Error);
+  EXPECT_EQ(writes, 3u);
 }

@@ -1,4 +1,5 @@
 #include "runtime/csv.hpp"
+#include "runtime/number_format.hpp"
 
 #include <qd/errors.hpp>
 
@@ -7,29 +8,27 @@
 #include <immintrin.h>
 #endif
 #include <unistd.h>
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
-#include <cmath>
+#include <condition_variable>
 #include <cstdio>
 #include <cstring>
+#include <exception>
+#include <memory>
+#include <mutex>
+#include <system_error>
+#include <thread>
 #include <utility>
+#include <vector>
 
 namespace qd::runtime {
 namespace fs = std::filesystem;
 
 void append_number(std::string& out, double v) {
-  if (std::isnan(v)) {
-    out += "nan";
-    return;
-  }
-  if (std::isinf(v)) {
-    out += v > 0 ? "inf" : "-inf";
-    return;
-  }
-  clear_upper_vector_state();  // about 1 cycle; to_chars is built for generic x86-64 (SSE)
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof(buf), v);
-  out.append(buf, r.ptr);
+  clear_upper_vector_state();  // about 1 cycle; the rare to_chars fallback is built for generic x86-64
+  char buf[kNumberBufferBytes];
+  out.append(buf, write_number(v, buf));
 }
 
 void clear_upper_vector_state() noexcept {
@@ -55,9 +54,7 @@ void append_int(std::string& out, std::int64_t v) {
 }
 
 namespace {
-void write_all(int fd, const std::string& content, const fs::path& path) {
-  const char* p = content.data();
-  std::size_t left = content.size();
+void write_all(int fd, const char* p, std::size_t left, const fs::path& path) {
   while (left > 0) {
     const ssize_t w = ::write(fd, p, left);
     if (w < 0) {
@@ -84,6 +81,84 @@ void rename_durably(const fs::path& tmp, const fs::path& path) {
 }
 }  // namespace
 
+void format_in_order(std::size_t blocks, std::size_t max_block_bytes, unsigned threads,
+                     const std::function<char*(std::size_t block, char* out)>& format,
+                     const std::function<void(const char* text, std::size_t size)>& write) {
+  if (blocks == 0) return;
+  threads = static_cast<unsigned>(std::clamp<std::size_t>(threads, 1, blocks));
+  // Piece b is formatted into ring[b % window]; it may be claimed once piece b - window is
+  // written, so a slot has one user at a time and needs no lock while it is formatted.
+  struct Slot {
+    std::unique_ptr<char[]> bytes;
+    std::size_t size = 0;
+    bool done = false;
+  };
+  const std::size_t window = 2 * static_cast<std::size_t>(threads);
+  std::vector<Slot> ring(window);
+  std::mutex mutex;
+  std::condition_variable changed;
+  std::size_t next = 0, written = 0;
+  std::exception_ptr error;
+  auto work = [&](bool writer) {
+    std::unique_lock<std::mutex> lock(mutex);
+    auto fail = [&] {
+      lock.lock();
+      if (!error) error = std::current_exception();
+      changed.notify_all();
+    };
+    while (!error) {
+      Slot& oldest = ring[written % window];
+      if (writer && written < blocks && oldest.done) {
+        lock.unlock();
+        try {
+          write(oldest.bytes.get(), oldest.size);
+        } catch (...) {
+          fail();
+          return;
+        }
+        lock.lock();
+        oldest.done = false;
+        ++written;
+        changed.notify_all();
+        continue;
+      }
+      if (writer && written == blocks) return;
+      if (next < blocks && next < written + window) {
+        const std::size_t b = next++;
+        Slot& slot = ring[b % window];
+        lock.unlock();
+        try {
+          if (!slot.bytes) slot.bytes.reset(new char[max_block_bytes]);  // uninitialised: no memset
+          const char* end = format(b, slot.bytes.get());
+          QD_CHECK(end >= slot.bytes.get() && static_cast<std::size_t>(end - slot.bytes.get()) <= max_block_bytes,
+                   "format_in_order: a piece overran its buffer");
+          slot.size = static_cast<std::size_t>(end - slot.bytes.get());
+        } catch (...) {
+          fail();
+          return;
+        }
+        lock.lock();
+        slot.done = true;
+        changed.notify_all();
+        continue;
+      }
+      if (!writer && next == blocks) return;
+      changed.wait(lock);
+    }
+  };
+  std::vector<std::thread> helpers;
+  for (unsigned i = 1; i < threads; ++i) {
+    try {
+      helpers.emplace_back(work, false);
+    } catch (const std::system_error&) {
+      break;  // fewer threads: slower, still complete
+    }
+  }
+  work(true);
+  for (auto& t : helpers) t.join();
+  if (error) std::rethrow_exception(error);
+}
+
 void write_file_atomic(const fs::path& path, const std::string& content) {
   AtomicFile file(path);
   file.write(content);
@@ -101,13 +176,13 @@ AtomicFile::~AtomicFile() {
   ::unlink(tmp_.c_str());
 }
 
-void AtomicFile::write(const std::string& bytes) {
-  write_all(fd_, bytes, tmp_);
+void AtomicFile::write(const char* bytes, std::size_t size) {
+  write_all(fd_, bytes, size, tmp_);
 #ifdef __linux__
   // Start writing this piece back now, asynchronously (errors surface at the fsync).
-  ::sync_file_range(fd_, static_cast<off_t>(written_), static_cast<off_t>(bytes.size()), SYNC_FILE_RANGE_WRITE);
+  ::sync_file_range(fd_, static_cast<off_t>(written_), static_cast<off_t>(size), SYNC_FILE_RANGE_WRITE);
 #endif
-  written_ += bytes.size();
+  written_ += size;
 }
 
 void AtomicFile::commit() {
@@ -152,7 +227,7 @@ void AppendLog::flush() {
   last_flush_ = std::chrono::steady_clock::now();
   std::string text;
   text.swap(pending_);
-  write_all(fd_, text, path_);
+  write_all(fd_, text.data(), text.size(), path_);
   text.clear();
   pending_.swap(text);  // keeps the capacity
 }

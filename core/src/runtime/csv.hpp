@@ -2,13 +2,16 @@
 #pragma once
 
 #include <chrono>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 
 namespace qd::runtime {
 
-// Shortest text that reads back to the same double ("nan" and "inf" spelled as pandas reads them).
+// Shortest text that reads back to the same double ("nan" and "inf" spelled as pandas reads them),
+// as write_number() (number_format.hpp) writes it.
 void append_number(std::string& out, double v);
 std::string format_number(double v);
 void append_int(std::string& out, std::int64_t v);
@@ -18,6 +21,17 @@ void append_int(std::string& out, std::int64_t v);
 // libstdc++'s number formatting, pays a merge penalty: formatting archive.csv ran 3.5x slower
 // (after the checkpoint code, XINUSE showed the AVX upper state in use). append_number() calls it.
 void clear_upper_vector_state() noexcept;
+
+// Produces a text of `blocks` consecutive pieces on up to `threads` threads, this one included,
+// and hands them to `write` in order on this thread, each as soon as it and the ones before it are
+// done. format(b, out) writes piece b at `out` (room for max_block_bytes) and returns its end.
+// At most 2 x threads pieces are held at once, so memory stays bounded however long the text. An
+// exception from `format` or `write` stops the work and is rethrown once the helpers have stopped.
+// Formatting archive.csv this way divides its time by the number of cores (it is most of the
+// cost of writing it, see number_format.hpp).
+void format_in_order(std::size_t blocks, std::size_t max_block_bytes, unsigned threads,
+                     const std::function<char*(std::size_t block, char* out)>& format,
+                     const std::function<void(const char* text, std::size_t size)>& write);
 
 // Writes `content` to `path` atomically: a temporary file in the same directory, fsync, rename.
 // Readers see either the old file or the new one, never a torn write.
@@ -35,7 +49,8 @@ class AtomicFile {
   ~AtomicFile();
   AtomicFile(const AtomicFile&) = delete;
   AtomicFile& operator=(const AtomicFile&) = delete;
-  void write(const std::string& bytes);
+  void write(const std::string& bytes) { write(bytes.data(), bytes.size()); }
+  void write(const char* bytes, std::size_t size);
   void commit();
 
  private:

@@ -1,6 +1,7 @@
 #include "runtime/run.hpp"
 
 #include "runtime/csv.hpp"
+#include "runtime/number_format.hpp"
 
 #include <qd/errors.hpp>
 #include <qd/state_io.hpp>
@@ -9,6 +10,7 @@
 #include <malloc.h>
 #include <unistd.h>
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -529,43 +531,53 @@ void Run::write_metrics_row(int loop, int iteration, const Offspring* off, std::
 }
 
 void Run::write_snapshot(const fs::path& path) const {
-  const GridSpec grid = desc_->grid();
-  const std::size_t P = shape_.param_count();
+  const std::size_t P = ex_.settings.snapshot_parameters ? shape_.param_count() : 0;
   const std::size_t dims = archive_->descriptor_dims();
   // pyribs-style columns: index, objective, measures_*, solution_*; plus the stored recn error.
-  std::string out = "index,objective";
-  for (std::size_t d = 0; d < dims; ++d) out += ",measures_" + std::to_string(d);
-  out += ",recn_error";
-  if (ex_.settings.snapshot_parameters)
-    for (std::size_t k = 0; k < P; ++k) out += ",solution_" + std::to_string(k);
-  out += '\n';
+  std::string head = "index,objective";
+  for (std::size_t d = 0; d < dims; ++d) head += ",measures_" + std::to_string(d);
+  head += ",recn_error";
+  for (std::size_t k = 0; k < P; ++k) head += ",solution_" + std::to_string(k);
+  head += '\n';
   AtomicFile file(path);
+  file.write(head);
   // Rows in cell order, so two archives with the same content give the same file.
   std::vector<std::size_t> slots(archive_->size());
   std::iota(slots.begin(), slots.end(), std::size_t{0});
   std::sort(slots.begin(), slots.end(), [&](auto a, auto b) { return archive_->cell(a) < archive_->cell(b); });
-  for (std::size_t slot : slots) {
-    append_int(out, archive_->cell(slot));
-    out += ',';
-    append_number(out, archive_->fitness(slot));
-    for (std::size_t d = 0; d < dims; ++d) {
-      out += ',';
-      append_number(out, archive_->descriptor(slot)[d]);
-    }
-    out += ',';
-    append_number(out, archive_->recn_error(slot));
-    if (ex_.settings.snapshot_parameters)
-      for (std::size_t k = 0; k < P; ++k) {
-        out += ',';
-        append_number(out, archive_->params(slot)[k]);
+  // Pieces of about 1 MB, formatted on every core: the evaluators are idle at a loop's end.
+  // A field is at most 25 characters and its separator; write_number may use more scratch.
+  const std::size_t row_bytes = (3 + dims + P) * 26 + kNumberBufferBytes;
+  const std::size_t rows_per_block = std::max<std::size_t>(1, (std::size_t{1} << 20) / row_bytes);
+  const std::size_t blocks = (slots.size() + rows_per_block - 1) / rows_per_block;
+  const Archive& archive = *archive_;
+  auto format = [&](std::size_t block, char* out) {
+    clear_upper_vector_state();  // once per piece: this may be a fresh thread or one after Eigen
+    const std::size_t end = std::min(slots.size(), (block + 1) * rows_per_block);
+    for (std::size_t r = block * rows_per_block; r < end; ++r) {
+      const std::size_t slot = slots[r];
+      out = std::to_chars(out, out + 24, archive.cell(slot)).ptr;
+      *out++ = ',';
+      out = write_number(archive.fitness(slot), out);
+      const double* descriptor = archive.descriptor(slot);
+      for (std::size_t d = 0; d < dims; ++d) {
+        *out++ = ',';
+        out = write_number(descriptor[d], out);
       }
-    out += '\n';
-    if (out.size() > (std::size_t{4} << 20)) {
-      file.write(out);
-      out.clear();
+      *out++ = ',';
+      out = write_number(archive.recn_error(slot), out);
+      const double* params = P ? archive.params(slot) : nullptr;
+      for (std::size_t k = 0; k < P; ++k) {
+        *out++ = ',';
+        out = write_number(params[k], out);
+      }
+      *out++ = '\n';
     }
-  }
-  file.write(out);
+    return out;
+  };
+  const auto threads = static_cast<unsigned>(std::clamp(hardware_workers(), 1, 8));
+  format_in_order(blocks, rows_per_block * row_bytes, threads, format,
+                  [&](const char* text, std::size_t size) { file.write(text, size); });
   file.commit();
 }
 
