@@ -27,8 +27,8 @@ void clear_upper_vector_state() noexcept;
 // done. format(b, out) writes piece b at `out` (room for max_block_bytes) and returns its end.
 // At most 2 x threads pieces are held at once, so memory stays bounded however long the text. An
 // exception from `format` or `write` stops the work and is rethrown once the helpers have stopped.
-// Formatting archive.csv this way divides its time by the number of cores (it is most of the
-// cost of writing it, see number_format.hpp).
+// archive.csv is formatted this way, spread over the cores that are idle at a loop's end
+// (formatting is most of the cost of writing it, see number_format.hpp).
 void format_in_order(std::size_t blocks, std::size_t max_block_bytes, unsigned threads,
                      const std::function<char*(std::size_t block, char* out)>& format,
                      const std::function<void(const char* text, std::size_t size)>& write);

@@ -1,14 +1,14 @@
 // Shortest round-trip text of a double, the same characters as std::to_chars(first, last, v).
 //
 // archive.csv holds every parameter of every elite (2.8 million numbers for the 32x32 arm), so
-// its formatting is most of the cost of writing it. This formatter takes about 27 ns per number
-// where libstdc++'s to_chars takes 41 (bench/number_format.cpp times both on the same values). It
-// follows the idea of Schubfach (R. Giulietti, "The Schubfach way to
-// render doubles", 2020): scale the rounding interval of v by a 128-bit power of ten, keep two
-// extra bits and round to odd, so that the few comparisons that decide the shortest decimal are
-// exact. Where exactness cannot be shown cheaply (v*10^-k within 2^-64 of an integer, which holds
-// for short decimals such as 0.5 or 3) and for large integers printed in fixed notation, it calls
-// std::to_chars, so every output is std::to_chars' output.
+// its formatting is most of the cost of writing it. This formatter takes about 30 ns per number
+// where libstdc++'s to_chars takes 43 (bench/number_format.cpp times both on the same values).
+// It follows the idea of Schubfach (R. Giulietti, "The Schubfach way to render doubles", 2020):
+// scale the rounding interval of v by a 128-bit power of ten, keep two extra bits and round to
+// odd, so that the few comparisons that decide the shortest decimal are exact. Where exactness
+// cannot be shown cheaply (v*10^-k within 2^-64 of an integer, which holds for short decimals
+// such as 0.5 or 3) and for large integers printed in fixed notation, it calls std::to_chars, so
+// every output is std::to_chars' output.
 #pragma once
 
 #include <cstddef>
