@@ -1,10 +1,19 @@
 // Framework overhead: evaluations/s of a full qdrun run (selection, mutation, evaluation,
-// description, insertion, metrics, checkpoints) divided by evaluations/s of a bare loop that calls
-// the same environment and policy directly. Same binary, same process, one worker.
+// description, insertion, metrics, checkpoints, the final archive.csv) divided by evaluations/s of a
+// bare loop that calls the same environment and policy directly. Same binary, same process.
 //
-//   qd_framework_overhead EXPERIMENT.toml [--workers N] [--repeat K] [--set k=v]...
+//   qd_framework_overhead EXPERIMENT.toml [--workers N] [--repeat K] [--whole] [--set k=v]...
 // The bare loop is single-threaded; the qdrun run uses N workers (default 1). Prints both rates and
 // their ratio (with N > 1 the ratio is the parallel speed-up over the bare loop).
+//
+// Interleaved (default): the bare loop's batches run between the run's iterations, from its
+// progress callback, so both sides share the machine's drift. A shared 2-vCPU VM changes speed by
+// tens of per cent within seconds (whole runs of the same work differ by up to 25 %), which whole
+// runs measured one after the other cannot cancel. The run's time is its wall time minus the bare
+// batches'. Every cost of the run stays on its side: a bare batch waits while the run's checkpoint
+// is being written (it runs later), so the run's background disk writes overlap the run alone, as
+// they would without the benchmark. Bare batches do evict the run's batch buffer from the cache,
+// which only makes the run slower. --whole alternates whole bare loops and whole runs instead.
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
 #include "runtime/run.hpp"
@@ -44,6 +53,13 @@ long thread_counter(const char* file, const std::string& key) {
   while (std::getline(in, line))
     if (line.rfind(key, 0) == 0) return std::stol(line.substr(line.find(':') + 1));
   return -1;
+}
+
+// CPU seconds of the calling thread.
+double thread_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
 // Involuntary context switches of the calling thread (preemptions) so far.
@@ -96,7 +112,7 @@ std::string helper_cpu_seconds() {
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: %s EXPERIMENT.toml [--workers N] [--repeat K] [--set k=v]...\n", argv[0]);
+    std::fprintf(stderr, "usage: %s EXPERIMENT.toml [--workers N] [--repeat K] [--whole] [--set k=v]...\n", argv[0]);
     return 2;
   }
   tune_allocator();  // as qdrun does; it applies to the bare loop and the run alike
@@ -106,9 +122,14 @@ int main(int argc, char** argv) {
     fs::remove_all(out);
     Document doc = Document::read(argv[1]);
     int workers = 1, repeat = 3;
-    for (int i = 2; i + 1 < argc; ++i) {
+    bool whole = false;
+    for (int i = 2; i < argc; ++i) {
       const std::string a = argv[i];
-      if (a == "--set")
+      if (a == "--whole")
+        whole = true;
+      else if (i + 1 >= argc)
+        break;
+      else if (a == "--set")
         doc.apply_override(argv[++i]);
       else if (a == "--workers")
         workers = std::stoi(argv[++i]);
@@ -149,64 +170,100 @@ int main(int argc, char** argv) {
     };
 
     // Bare loop: the run's own environment object and policy shape, one rollout call per batch,
-    // no evaluator, descriptor, archive or files.
-    std::uint64_t bare_steps = 0;
-    auto bare_loop = [&](const Run& run) {
+    // no evaluator, descriptor, archive or files. Its buffers live across repetitions, as the
+    // run's do within a run.
+    struct Bare {
+      std::vector<std::pair<Rng, std::size_t>> batches;
+      std::size_t next = 0;
+      std::uint64_t evaluations = 0, steps = 0;
+      double seconds = 0, cpu = 0;
       Matrix params;
       std::vector<Trace> traces;
       std::vector<std::uint64_t> seeds;
+    } bare;
+    auto bare_batch = [&](const Run& run) {
+      auto& [rng, n] = bare.batches[bare.next++];
       const PolicyShape& shape = run.policy_shape();
-      const auto P = static_cast<Eigen::Index>(shape.param_count());
-      bare_steps = 0;
-      const double c0 = process_cpu_seconds();
+      bare.params.resize(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(shape.param_count()));
+      bare.traces.resize(n);
+      bare.seeds.assign(n, 0);
+      rng.fill_uniform(bare.params.data(), static_cast<std::size_t>(bare.params.size()), -1.0, 1.0);
+      RolloutBatch b{&shape, &bare.params, bare.seeds.data(), 0, n};
+      run.environment().rollout(b, bare.traces.data());
+      for (std::size_t i = 0; i < n; ++i) bare.steps += static_cast<std::uint64_t>(bare.traces[i].steps);
+      bare.evaluations += n;
+    };
+    // Runs bare batches while `more()`, timing them (wall and this thread's CPU).
+    auto bare_batches = [&](const Run& run, auto&& more) {
+      const double c0 = thread_cpu_seconds();
       const auto t0 = std::chrono::steady_clock::now();
-      for (auto& [rng, n] : batches()) {
-        params.resize(static_cast<Eigen::Index>(n), P);
-        traces.resize(n);
-        seeds.assign(n, 0);
-        rng.fill_uniform(params.data(), static_cast<std::size_t>(params.size()), -1.0, 1.0);
-        RolloutBatch b{&shape, &params, seeds.data(), 0, n};
-        run.environment().rollout(b, traces.data());
-        for (const auto& t : traces) bare_steps += static_cast<std::uint64_t>(t.steps);
-      }
-      return std::pair{seconds_since(t0), process_cpu_seconds() - c0};
+      while (bare.next < bare.batches.size() && more()) bare_batch(run);
+      const double s = seconds_since(t0);
+      bare.seconds += s;
+      bare.cpu += thread_cpu_seconds() - c0;
+      return s;
+    };
+    auto reset_bare = [&] {
+      bare.batches = batches();
+      bare.next = 0;
+      bare.evaluations = bare.steps = 0;
+      bare.seconds = bare.cpu = 0;
     };
 
-    // Alternating repetitions (bare, run, bare, run, ...): machine noise only ever adds time, so
-    // the ratio of the fastest of each side is the least disturbed estimate; every repetition is
-    // printed too.
+    std::printf("# %s: %s\n", argv[1],
+                whole ? "whole bare loops and whole runs alternate; best of each side"
+                      : "bare batches interleaved with the run's iterations; median of the repetitions");
     double best_bare = 1e300, best_run = 1e300, best_bare_cpu = 1e300, best_run_cpu = 1e300;
     std::size_t params_count = 0;
-    std::vector<double> rep_ratios;
+    std::uint64_t bare_steps = 0;
+    std::vector<double> ratios, bare_times, run_times, cpu_ratios;
     for (int r = 0; r < repeat; ++r) {
       const fs::path dir = out / ("rep-" + std::to_string(r));
+      reset_bare();
       RunOptions opt;
       opt.directory = dir.string();
+      const Run* running = nullptr;
+      double inside_run = 0, inside_run_cpu = 0;  // bare work done from within the run
+      if (!whole)
+        opt.on_progress = [&](const Progress& p) {
+          if (running->checkpoint_in_flight()) return;
+          const double c = bare.cpu;
+          inside_run += bare_batches(*running, [&] { return bare.evaluations < p.evaluations; });
+          inside_run_cpu += bare.cpu - c;
+        };
       Run run(ex, reg, std::move(opt));
+      running = &run;
       params_count = run.policy_shape().param_count();
       run.create_directory();
-      const auto [bare_s, bare_cpu] = bare_loop(run);
+      if (whole) bare_batches(run, [] { return true; });
       const long sw_run = involuntary_switches(), mig_run = cpu_migrations();
       const double wait_run = runqueue_wait_seconds();
       const double c_run = process_cpu_seconds();
       const auto t_run = std::chrono::steady_clock::now();
       run.run();
-      const double run_s = seconds_since(t_run);
-      const double run_cpu = process_cpu_seconds() - c_run;
+      const double run_s = seconds_since(t_run) - inside_run;
+      const double run_cpu = process_cpu_seconds() - c_run - inside_run_cpu;
       const std::string helpers = helper_cpu_seconds();  // before the run's threads end with it
       const long preempted = involuntary_switches() - sw_run, migrated = cpu_migrations() - mig_run;
       const double waited = runqueue_wait_seconds() - wait_run;
-      best_bare = std::min(best_bare, bare_s);
+      const std::size_t late = bare.batches.size() - bare.next;
+      bare_batches(run, [] { return true; });  // the rest (none unless a checkpoint held them back)
+      bare_steps = bare.steps;
+      best_bare = std::min(best_bare, bare.seconds);
       best_run = std::min(best_run, run_s);
-      best_bare_cpu = std::min(best_bare_cpu, bare_cpu);
+      best_bare_cpu = std::min(best_bare_cpu, bare.cpu);
       best_run_cpu = std::min(best_run_cpu, run_cpu);
-      rep_ratios.push_back(bare_s / run_s);
+      ratios.push_back(bare.seconds / run_s);
+      cpu_ratios.push_back(bare.cpu / run_cpu);
+      bare_times.push_back(bare.seconds);
+      run_times.push_back(run_s);
       std::printf("  repetition %d: bare %.3f s (cpu %.3f), qdrun %.3f s (cpu %.3f), ratio %.4f (cpu %.4f)\n", r + 1,
-                  bare_s, bare_cpu, run_s, run_cpu, bare_s / run_s, bare_cpu / run_cpu);
+                  bare.seconds, bare.cpu, run_s, run_cpu, bare.seconds / run_s, bare.cpu / run_cpu);
       std::printf(
           "    helper threads' cpu: %s; loop thread preempted %ld times, moved to another CPU %ld times, "
-          "waited %.3f s for a CPU\n",
-          helpers.c_str(), preempted, migrated, waited);
+          "waited %.3f s for a CPU%s\n",
+          helpers.c_str(), preempted, migrated, waited,
+          whole ? "" : ("; bare batches run after the run: " + std::to_string(late)).c_str());
       std::fflush(stdout);
       fs::remove_all(dir);
     }
@@ -214,11 +271,21 @@ int main(int argc, char** argv) {
     std::printf("experiment=%s params=%zu evaluations=%llu workers=%d same_policies=%d bare_us_per_step=%.3f\n",
                 argv[1], params_count, static_cast<unsigned long long>(total), workers, same_policies ? 1 : 0,
                 1e6 * best_bare / static_cast<double>(bare_steps));
-    std::printf(
-        "bare_loop_evals_per_s=%.1f qdrun_evals_per_s=%.1f ratio=%.4f bare_us_per_eval=%.2f qdrun_us_per_eval=%.2f "
-        "cpu_ratio=%.4f (best of %d alternating repetitions) median_repetition_ratio=%.4f\n",
-        n / best_bare, n / best_run, best_bare / best_run, 1e6 * best_bare / n, 1e6 * best_run / n,
-        best_bare_cpu / best_run_cpu, repeat, median(rep_ratios));
+    if (whole) {
+      std::printf(
+          "bare_loop_evals_per_s=%.1f qdrun_evals_per_s=%.1f ratio=%.4f bare_us_per_eval=%.2f qdrun_us_per_eval=%.2f "
+          "cpu_ratio=%.4f (best of %d alternating repetitions) median_repetition_ratio=%.4f\n",
+          n / best_bare, n / best_run, best_bare / best_run, 1e6 * best_bare / n, 1e6 * best_run / n,
+          best_bare_cpu / best_run_cpu, repeat, median(ratios));
+    } else {
+      const auto [lo, hi] = std::minmax_element(ratios.begin(), ratios.end());
+      std::printf(
+          "bare_loop_evals_per_s=%.1f qdrun_evals_per_s=%.1f ratio=%.4f min_ratio=%.4f max_ratio=%.4f "
+          "bare_us_per_eval=%.2f qdrun_us_per_eval=%.2f cpu_ratio=%.4f (median of %d interleaved repetitions; "
+          "rates from the median times)\n",
+          n / median(bare_times), n / median(run_times), median(ratios), *lo, *hi, 1e6 * median(bare_times) / n,
+          1e6 * median(run_times) / n, median(cpu_ratios), repeat);
+    }
     fs::remove_all(out);
     return 0;
   } catch (const std::exception& e) {

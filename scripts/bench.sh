@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Benchmarks (never part of the tests). Builds Release in build/ and prints one line per
-# measurement. Every ratio is measured within one process: the bare loop and the qdrun run
-# alternate (--repeat times) and the fastest of each side is compared, because noise from other
-# processes only ever adds time. Run on a quiet machine; `nice -n -10 scripts/bench.sh` helps.
+# measurement. Every ratio is measured within one process: the bare loop's batches run between
+# the qdrun run's iterations, so both sides see the same machine speed (a shared VM drifts by tens
+# of per cent within seconds), and the median over --repeat runs is printed
+# (qd_framework_overhead --whole alternates whole bare loops and whole runs instead and compares
+# the fastest of each side). Run on a quiet machine; `nice -n -10 scripts/bench.sh` helps.
 #   scripts/bench.sh            framework overhead and environment throughput
 #   scripts/bench.sh parallel   threads vs processes vs MPI ranks (scripts/bench-parallel.sh)
 set -euo pipefail

@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <memory>
 #include <string>
 
@@ -93,5 +94,32 @@ TEST(CheckpointWriter, AppendCutsUncommittedBytesAndWritesAtItsOffset) {
     writer.wait();
   }
   EXPECT_EQ(slurp(log), "committed|new-more");
+  fs::remove_all(dir);
+}
+
+TEST(CheckpointWriter, BusyWhileAJobIsBeingWrittenAndNotAfterWait) {
+  const fs::path dir = fs::temp_directory_path() / ("qd_checkpoint_writer_busy-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::promise<void> release;
+  std::shared_future<void> released = release.get_future().share();
+  std::promise<void> started;
+  CheckpointWriter writer;
+  EXPECT_FALSE(writer.busy());  // nothing submitted yet
+  CheckpointWriter::Job job;
+  job.checkpoint = dir / "checkpoint.bin";
+  job.state = "s";
+  job.prepare = [&] {  // holds the writer inside the job until released
+    started.set_value();
+    released.wait();
+  };
+  writer.submit(job);
+  started.get_future().wait();
+  EXPECT_TRUE(writer.busy());
+  EXPECT_FALSE(fs::exists(dir / "checkpoint.bin"));
+  release.set_value();
+  writer.wait();
+  EXPECT_FALSE(writer.busy());
+  EXPECT_EQ(slurp(dir / "checkpoint.bin"), "s");
   fs::remove_all(dir);
 }

@@ -91,6 +91,11 @@ void CheckpointWriter::wait() {
   if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
 }
 
+bool CheckpointWriter::busy() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return pending_;
+}
+
 void CheckpointWriter::work() {
   ::pthread_setname_np(::pthread_self(), "qd-checkpoint");  // named for top -H and the benchmark
   std::unique_lock<std::mutex> lock(mutex_);

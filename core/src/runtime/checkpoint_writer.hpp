@@ -81,13 +81,15 @@ class CheckpointWriter {
   void submit(Job& job);
   // Waits until nothing is in flight; rethrows the error of a failed write.
   void wait();
+  // Whether a checkpoint is being written now (it will be done by the time wait() returns).
+  bool busy() const;
 
  private:
   void work();
   void write(const Job& job) const;
 
   const bool direct_io_;
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::condition_variable wake_, idle_;
   Job job_;
   bool pending_ = false, stop_ = false;

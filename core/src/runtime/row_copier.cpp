@@ -24,13 +24,8 @@ RowCopier::~RowCopier() {
 
 void RowCopier::submit(std::vector<Archive::DeferredCopy>& copies) {
   bool wake = false;
-  const auto now = std::chrono::steady_clock::now();
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (submitted_ > 0)
-      poll_interval_ =
-          std::clamp<std::chrono::steady_clock::duration>((now - last_submit_) / kPollsPerSubmit, kMinPoll, kMaxPoll);
-    last_submit_ = now;
     queue_.push_back(std::move(copies));
     ++submitted_;
     copies.clear();
@@ -59,8 +54,13 @@ bool RowCopier::copy_next(std::unique_lock<std::mutex>& lock) {
 
 void RowCopier::wait(std::uint64_t in_flight) {
   std::vector<std::vector<Archive::DeferredCopy>> done;
+  const auto now = std::chrono::steady_clock::now();
   {
     std::unique_lock<std::mutex> lock(mutex_);
+    if (last_wait_ != std::chrono::steady_clock::time_point{})
+      poll_interval_ =
+          std::clamp<std::chrono::steady_clock::duration>((now - last_wait_) / kPollsPerBatch, kMinPoll, kMaxPoll);
+    last_wait_ = now;
     while (submitted_ - completed_ > in_flight) {
       if (copy_next(lock)) continue;
       // The copier is copying a batch (at most one batch's rows): spin rather than block, which

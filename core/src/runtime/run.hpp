@@ -99,6 +99,9 @@ class Run {
   const Environment& environment() const { return *env_; }
   const Descriptor& descriptor() const { return *desc_; }
   const PolicyShape& policy_shape() const { return shape_; }
+  // Whether the background writer is still writing the last loop's checkpoint (benchmarks use it
+  // to keep their own work from overlapping the run's disk writes).
+  bool checkpoint_in_flight() const { return checkpoint_writer_ && checkpoint_writer_->busy(); }
 
  private:
   void loop_zero();
