@@ -193,15 +193,13 @@ int main(int argc, char** argv) {
       for (std::size_t i = 0; i < n; ++i) bare.steps += static_cast<std::uint64_t>(bare.traces[i].steps);
       bare.evaluations += n;
     };
-    // Runs bare batches while `more()`, timing them (wall and this thread's CPU).
+    // Runs bare batches while `more()`, adding their wall and this thread's CPU time to bare's.
     auto bare_batches = [&](const Run& run, auto&& more) {
       const double c0 = thread_cpu_seconds();
       const auto t0 = std::chrono::steady_clock::now();
       while (bare.next < bare.batches.size() && more()) bare_batch(run);
-      const double s = seconds_since(t0);
-      bare.seconds += s;
+      bare.seconds += seconds_since(t0);
       bare.cpu += thread_cpu_seconds() - c0;
-      return s;
     };
     auto reset_bare = [&] {
       bare.batches = batches();
@@ -223,13 +221,10 @@ int main(int argc, char** argv) {
       RunOptions opt;
       opt.directory = dir.string();
       const Run* running = nullptr;
-      double inside_run = 0, inside_run_cpu = 0;  // bare work done from within the run
       if (!whole)
         opt.on_progress = [&](const Progress& p) {
           if (running->checkpoint_in_flight()) return;
-          const double c = bare.cpu;
-          inside_run += bare_batches(*running, [&] { return bare.evaluations < p.evaluations; });
-          inside_run_cpu += bare.cpu - c;
+          bare_batches(*running, [&] { return bare.evaluations < p.evaluations; });
         };
       Run run(ex, reg, std::move(opt));
       running = &run;
@@ -238,11 +233,12 @@ int main(int argc, char** argv) {
       if (whole) bare_batches(run, [] { return true; });
       const long sw_run = involuntary_switches(), mig_run = cpu_migrations();
       const double wait_run = runqueue_wait_seconds();
-      const double c_run = process_cpu_seconds();
+      const double c_run = process_cpu_seconds(), bare_s0 = bare.seconds, bare_cpu0 = bare.cpu;
       const auto t_run = std::chrono::steady_clock::now();
       run.run();
-      const double run_s = seconds_since(t_run) - inside_run;
-      const double run_cpu = process_cpu_seconds() - c_run - inside_run_cpu;
+      // Minus the bare batches run from within the run.
+      const double run_s = seconds_since(t_run) - (bare.seconds - bare_s0);
+      const double run_cpu = process_cpu_seconds() - c_run - (bare.cpu - bare_cpu0);
       const std::string helpers = helper_cpu_seconds();  // before the run's threads end with it
       const long preempted = involuntary_switches() - sw_run, migrated = cpu_migrations() - mig_run;
       const double waited = runqueue_wait_seconds() - wait_run;
