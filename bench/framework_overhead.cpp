@@ -213,6 +213,7 @@ int main(int argc, char** argv) {
                       : "bare batches interleaved with the run's iterations; median of the repetitions");
     double best_bare = 1e300, best_run = 1e300, best_bare_cpu = 1e300, best_run_cpu = 1e300;
     std::size_t params_count = 0;
+    bool one_buffer = false;
     std::uint64_t bare_steps = 0;
     std::vector<double> ratios, bare_times, run_times, cpu_ratios;
     for (int r = 0; r < repeat; ++r) {
@@ -229,6 +230,7 @@ int main(int argc, char** argv) {
       Run run(ex, reg, std::move(opt));
       running = &run;
       params_count = run.policy_shape().param_count();
+      one_buffer = run.one_offspring_buffer();
       run.create_directory();
       if (whole) bare_batches(run, [] { return true; });
       const long sw_run = involuntary_switches(), mig_run = cpu_migrations();
@@ -264,9 +266,11 @@ int main(int argc, char** argv) {
       fs::remove_all(dir);
     }
     const double n = static_cast<double>(total);
-    std::printf("experiment=%s params=%zu evaluations=%llu workers=%d same_policies=%d bare_us_per_step=%.3f\n",
-                argv[1], params_count, static_cast<unsigned long long>(total), workers, same_policies ? 1 : 0,
-                1e6 * best_bare / static_cast<double>(bare_steps));
+    std::printf(
+        "experiment=%s params=%zu evaluations=%llu workers=%d offspring_buffers=%s same_policies=%d "
+        "bare_us_per_step=%.3f\n",
+        argv[1], params_count, static_cast<unsigned long long>(total), workers, one_buffer ? "one" : "two",
+        same_policies ? 1 : 0, 1e6 * best_bare / static_cast<double>(bare_steps));
     if (whole) {
       std::printf(
           "bare_loop_evals_per_s=%.1f qdrun_evals_per_s=%.1f ratio=%.4f bare_us_per_eval=%.2f qdrun_us_per_eval=%.2f "

@@ -88,6 +88,23 @@ std::int64_t Archive::place(std::int64_t cell, const double* descriptor, double 
   return slot;
 }
 
+void Archive::prefetch(const std::int64_t* cells, std::size_t n) const {
+  // Two passes: the cells' slots first, then (slots known) the slots' fields, all in flight at once.
+  for (std::size_t i = 0; i < n; ++i)
+    if (cells[i] >= 0 && cells[i] < cells_) __builtin_prefetch(&cell_slot_[static_cast<std::size_t>(cells[i])]);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (cells[i] < 0 || cells[i] >= cells_) continue;
+    const std::int64_t slot = cell_slot_[static_cast<std::size_t>(cells[i])];
+    if (slot < 0) continue;
+    const auto s = static_cast<std::size_t>(slot);
+    __builtin_prefetch(&fitness_[s], 1);
+    __builtin_prefetch(&recn_[s], 1);
+    __builtin_prefetch(&dirty_[s], 1);
+    if (dims_ > 0) __builtin_prefetch(&desc_[s * dims_], 1);
+    if (!source_.empty()) __builtin_prefetch(&source_[s], 1);
+  }
+}
+
 Insertion Archive::offer(std::int64_t cell, const double* params, const double* descriptor, double fitness,
                          double recn_error, bool replace) {
   QD_CHECK(pending_copies() == 0, "Archive::offer while deferred copies are pending");

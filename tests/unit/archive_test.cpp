@@ -31,6 +31,28 @@ TEST(Archive, InsertionOutcomes) {
   EXPECT_EQ(a.slot_of(3), -1);
 }
 
+// A cache hint only: empty, occupied, invalid (-1) and out-of-range cells leave the archive's
+// contents, dirty marks and later outcomes as they were (out-of-range reads would trip ASan).
+TEST(Archive, PrefetchChangesNothing) {
+  Archive a(10, 3, 2);
+  a.offer(4, kP1, kD, 1.0, 0.1, false);
+  std::vector<std::size_t> dirty;
+  a.take_dirty(dirty);
+  std::ostringstream before;
+  a.save(before);
+  const std::int64_t cells[] = {4, 7, -1, 10, 1 << 30, 0};
+  a.prefetch(cells, std::size(cells));
+  a.prefetch(cells, 0);
+  std::ostringstream after;
+  a.save(after);
+  EXPECT_EQ(after.str(), before.str());
+  a.take_dirty(dirty);
+  EXPECT_TRUE(dirty.empty());
+  EXPECT_EQ(a.offer(7, kP2, kD, 2.0, 0.2, false), Insertion::kAdded);
+  EXPECT_EQ(a.offer(4, kP2, kD, 2.0, 0.2, false), Insertion::kRejected);
+  EXPECT_EQ(a.size(), 2u);
+}
+
 TEST(Archive, SelectionWithoutReplacementWhenLargeEnough) {
   Archive a(100, 3, 2);
   for (int c = 0; c < 50; ++c) a.offer(c, kP1, kD, 0, c, false);

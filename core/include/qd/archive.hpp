@@ -84,6 +84,11 @@ class QD_EXPORT Archive {
   void release_copies(const std::vector<DeferredCopy>& copies);
   std::size_t pending_copies() const noexcept { return pending_; }
 
+  // A cache hint, no change: the caller is about to offer to these cells (negative ones are
+  // skipped). The rollouts between two batches' insertions evict the archive's per-slot arrays, so
+  // without it each offer waits for several cache misses in turn.
+  void prefetch(const std::int64_t* cells, std::size_t n) const;
+
   // Draws n parents uniformly over occupied cells: without replacement when size() >= n, with
   // replacement otherwise (spec 3.3.3.1). Requires size() > 0.
   void select(std::size_t n, Rng& rng, Parents& out) const;

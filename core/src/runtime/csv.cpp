@@ -217,7 +217,7 @@ void AppendLog::append(const fs::path& path, const std::string& text) {
     path_ = path;
     last_flush_ = std::chrono::steady_clock::now();
   }
-  QD_CHECK(path == path_, "one AppendLog appends to one file");
+  QD_CHECK(path.native() == path_.native(), "one AppendLog appends to one file");  // not path's per-component compare
   pending_ += text;
   if (std::chrono::steady_clock::now() - last_flush_ >= flush_interval_) flush();
 }

@@ -4,14 +4,32 @@
 
 #include <qd/errors.hpp>
 
+#include <unistd.h>
 #include <algorithm>
 #include <cstdlib>
+#include <fstream>
+#include <string>
 
 namespace qd::runtime {
 
 int hardware_workers() {
   const unsigned n = std::thread::hardware_concurrency();
   return n == 0 ? 1 : static_cast<int>(n);
+}
+
+std::size_t core_l2_cache_bytes() {
+#ifdef _SC_LEVEL2_CACHE_SIZE
+  if (const long bytes = ::sysconf(_SC_LEVEL2_CACHE_SIZE); bytes > 0) return static_cast<std::size_t>(bytes);
+#endif
+  // glibc answers from CPUID on x86; elsewhere the kernel's description, e.g. "1024K".
+  std::ifstream in("/sys/devices/system/cpu/cpu0/cache/index2/size");
+  std::size_t value = 0;
+  std::string unit;
+  if (!(in >> value)) return 0;
+  in >> unit;
+  if (unit == "K") return value << 10;
+  if (unit == "M") return value << 20;
+  return unit.empty() ? value : 0;
 }
 
 WorkerPool::WorkerPool(int threads) {

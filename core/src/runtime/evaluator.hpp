@@ -170,6 +170,9 @@ std::unique_ptr<Evaluator> make_evaluator(const EvaluatorSpec& spec, const Envir
 // Number of hardware threads (at least 1).
 int hardware_workers();
 
+// Size in bytes of the calling core's L2 cache (0 if the system does not say).
+std::size_t core_l2_cache_bytes();
+
 // MPI session helpers; without QD_WITH_MPI they report a single process and mpi_start() is a no-op.
 bool mpi_built() noexcept;
 bool mpi_launched() noexcept;             // started by mpirun/mpiexec (environment variables)

@@ -221,6 +221,8 @@ void Run::write_provenance() const {
     << "hardware_threads = " << hardware_workers() << "\n"
     << "workers = " << evaluator_->workers() << "\n"
     << "backend = " << toml_string(evaluator_->backend()) << "\n"
+    << "offspring_buffers = " << toml_string(one_offspring_buffer() ? "one" : "two") << "\n"
+    << "l2_cache_bytes = " << core_l2_cache_bytes() << "\n"
     << "seed = " << ex_.settings.seed << "\n"
     << "started = " << toml_string(utc_now()) << "\n"
     << "resumed_at_loop = " << next_loop_ << "\n"
@@ -359,10 +361,8 @@ void Run::map_elites_loop(int loop) {
   std::vector<Insertion>& outcomes = outcomes_;
   outcomes.resize(batch);
   const bool by_fitness = s.insertion == "fitness";
-  // A streaming evaluator hands rows over while the batch runs, so the copies are done soon after
-  // it and the next batch can reuse the same buffer, which then stays largely in this core's
-  // cache (a 2.2 MB buffer of the 32x32 arm benchmark is about a 2 MB L2; two are twice that).
-  const bool single_buffer = defer && evaluator_->streams_rows();
+  // One buffer or two; archives are the same either way (see one_offspring_buffer).
+  const bool single_buffer = one_offspring_buffer();
   for (int it = 0; it < s.iterations; ++it) {
     if (mutator_->uses_parents()) {
       if (archive_->size() == 0) throw Error("the archive is empty after loop 0: no initial sample could be described");
@@ -398,6 +398,7 @@ void Run::map_elites_loop(int loop) {
     fb.offspring = batch;
     std::size_t inserted = 0;
     auto insert_rows = [&](std::size_t end) {
+      archive_->prefetch(ev.cells.data() + inserted, end - inserted);
       for (std::size_t i = inserted; i < end; ++i) {
         const std::int64_t cell = ev.cells[i];
         if (cell < 0) {
@@ -429,7 +430,12 @@ void Run::map_elites_loop(int loop) {
       inserted = end;
       if (defer && !copies_.empty()) row_copier_->submit(copies_);
     };
-    evaluator_->evaluate_streaming(off.theta, seeds, ev, insert_rows);
+    if (single_buffer) {
+      evaluator_->evaluate_streaming(off.theta, seeds, ev, insert_rows);
+    } else {
+      evaluator_->evaluate(off.theta, seeds, ev);
+      insert_rows(batch);
+    }
     QD_CHECK(inserted == batch, "the evaluator reported every row of the batch");
     evaluations_ += batch;
     session_evaluations_ += batch;
@@ -443,6 +449,23 @@ void Run::map_elites_loop(int loop) {
   for (std::int64_t cell : touched)
     if (!dataset_->contains_cell(cell))
       dataset_->add(archive_->params(static_cast<std::size_t>(archive_->slot_of(cell))), cell, loop);
+}
+
+bool Run::one_offspring_buffer() const {
+  // One buffer: a streaming (serial) evaluator hands rows over while the batch runs, so their
+  // copies into the archive are done soon after it and the next batch refills the same buffer,
+  // while it is still largely in this core's L2. That pays when the buffer about fits the L2 (a
+  // 2.2 MB buffer of the 32x32 arm benchmark and a 2 MB L2: qdrun 2.8 % faster than with two).
+  // With a smaller L2 the buffer is evicted either way, and then the copier's reads of the rows
+  // on the other core slow the refill, and the streamed parts cost a rollout call each: two
+  // alternating buffers, each evaluated in one call and copied during the next batch, are faster
+  // (0.9 % with a 1 MB L2, README).
+  if (!archive_->can_defer_copies() || !evaluator_->streams_rows()) return false;
+  const std::string& mode = ex_.settings.offspring_buffers;
+  if (mode != "auto") return mode == "one";
+  const std::size_t bytes = static_cast<std::size_t>(ex_.settings.batch) * shape_.param_count() * sizeof(double);
+  const std::size_t l2 = core_l2_cache_bytes();
+  return bytes <= l2 + l2 / 4;
 }
 
 void Run::fill_reconstruction(Offspring& off, Vector& recn) const {
@@ -500,7 +523,8 @@ void Run::fit_representation(int loop) {
 
 void Run::write_metrics_row(int loop, int iteration, const Offspring* off, std::size_t added, std::size_t replaced,
                             std::size_t invalid) {
-  std::string row;
+  std::string& row = metrics_row_;  // kept: no allocation per row
+  row.clear();
   append_int(row, loop);
   row += ',';
   append_int(row, iteration);
@@ -527,7 +551,8 @@ void Run::write_metrics_row(int loop, int iteration, const Offspring* off, std::
     if (off && k < off->metrics.size()) append_number(row, off->metrics[k]);
   }
   row += '\n';
-  metrics_log_.append(dir_ / "metrics.csv", row);
+  if (metrics_path_.empty()) metrics_path_ = dir_ / "metrics.csv";
+  metrics_log_.append(metrics_path_, row);
 }
 
 void Run::write_snapshot(const fs::path& path) const {

@@ -99,6 +99,9 @@ class Run {
   const Environment& environment() const { return *env_; }
   const Descriptor& descriptor() const { return *desc_; }
   const PolicyShape& policy_shape() const { return shape_; }
+  // Whether the MAP-Elites loop uses one offspring buffer, streamed, or two ([evaluation]
+  // offspring_buffers).
+  bool one_offspring_buffer() const;
   // Whether the background writer is still writing the last loop's checkpoint (benchmarks use it
   // to keep their own work from overlapping the run's disk writes).
   bool checkpoint_in_flight() const { return checkpoint_writer_ && checkpoint_writer_->busy(); }
@@ -137,6 +140,8 @@ class Run {
   std::vector<std::string> plugin_lines_;
   std::vector<std::string> mutator_metric_names_;
   AppendLog metrics_log_;  // metrics.csv, one row per iteration
+  std::filesystem::path metrics_path_;
+  std::string metrics_row_;
 
   // Batch buffers reused across iterations and loops: fresh multi-megabyte allocations every loop
   // cost page faults that showed up as framework overhead.
