@@ -160,6 +160,8 @@ Run::Run(Experiment experiment, const Registry& registry, RunOptions options)
   evaluator_ = make_evaluator(spec, *env_, *desc_, shape_);
   archive_ = std::make_unique<Archive>(grid.cells, shape_.param_count(), grid.shape.size());
   dataset_ = std::make_unique<Dataset>(shape_.param_count());
+  one_buffer_ = choose_one_offspring_buffer();
+  metrics_path_ = dir_ / "metrics.csv";
 }
 
 Run::~Run() = default;
@@ -178,7 +180,7 @@ void Run::create_directory() {
   std::string header =
       "loop,iteration,evaluations,elites,coverage,mixing_ratio,added,replaced,invalid,wall_seconds,train_seconds";
   for (const auto& n : mutator_metric_names_) header += "," + n;
-  write_file_atomic(dir_ / "metrics.csv", header + "\n");
+  write_file_atomic(metrics_path_, header + "\n");
   write_file_atomic(dir_ / "training.csv", "loop,epochs,train_loss,test_loss,stopped_early,seconds\n");
   next_loop_ = 0;
 }
@@ -221,7 +223,7 @@ void Run::write_provenance() const {
     << "hardware_threads = " << hardware_workers() << "\n"
     << "workers = " << evaluator_->workers() << "\n"
     << "backend = " << toml_string(evaluator_->backend()) << "\n"
-    << "offspring_buffers = " << toml_string(one_offspring_buffer() ? "one" : "two") << "\n"
+    << "offspring_buffers = " << toml_string(one_buffer_ ? "one" : "two") << "\n"
     << "l2_cache_bytes = " << core_l2_cache_bytes() << "\n"
     << "seed = " << ex_.settings.seed << "\n"
     << "started = " << toml_string(utc_now()) << "\n"
@@ -361,8 +363,8 @@ void Run::map_elites_loop(int loop) {
   std::vector<Insertion>& outcomes = outcomes_;
   outcomes.resize(batch);
   const bool by_fitness = s.insertion == "fitness";
-  // One buffer or two; archives are the same either way (see one_offspring_buffer).
-  const bool single_buffer = one_offspring_buffer();
+  // One buffer or two; archives are the same either way (see choose_one_offspring_buffer).
+  const bool single_buffer = one_buffer_;
   for (int it = 0; it < s.iterations; ++it) {
     if (mutator_->uses_parents()) {
       if (archive_->size() == 0) throw Error("the archive is empty after loop 0: no initial sample could be described");
@@ -451,7 +453,7 @@ void Run::map_elites_loop(int loop) {
       dataset_->add(archive_->params(static_cast<std::size_t>(archive_->slot_of(cell))), cell, loop);
 }
 
-bool Run::one_offspring_buffer() const {
+bool Run::choose_one_offspring_buffer() const {
   // One buffer: a streaming (serial) evaluator hands rows over while the batch runs, so their
   // copies into the archive are done soon after it and the next batch refills the same buffer,
   // while it is still largely in this core's L2. That pays when the buffer about fits the L2 (a
@@ -551,7 +553,6 @@ void Run::write_metrics_row(int loop, int iteration, const Offspring* off, std::
     if (off && k < off->metrics.size()) append_number(row, off->metrics[k]);
   }
   row += '\n';
-  if (metrics_path_.empty()) metrics_path_ = dir_ / "metrics.csv";
   metrics_log_.append(metrics_path_, row);
 }
 

@@ -100,8 +100,8 @@ class Run {
   const Descriptor& descriptor() const { return *desc_; }
   const PolicyShape& policy_shape() const { return shape_; }
   // Whether the MAP-Elites loop uses one offspring buffer, streamed, or two ([evaluation]
-  // offspring_buffers).
-  bool one_offspring_buffer() const;
+  // offspring_buffers; decided once, at construction).
+  bool one_offspring_buffer() const { return one_buffer_; }
   // Whether the background writer is still writing the last loop's checkpoint (benchmarks use it
   // to keep their own work from overlapping the run's disk writes).
   bool checkpoint_in_flight() const { return checkpoint_writer_ && checkpoint_writer_->busy(); }
@@ -110,6 +110,7 @@ class Run {
   void loop_zero();
   void map_elites_loop(int loop);
   void fit_representation(int loop);
+  bool choose_one_offspring_buffer() const;
   void fill_reconstruction(Offspring& off, Vector& recn) const;
   void write_metrics_row(int loop, int iteration, const Offspring* off, std::size_t added, std::size_t replaced,
                          std::size_t invalid);
@@ -139,9 +140,10 @@ class Run {
   std::unique_ptr<Dataset> dataset_;
   std::vector<std::string> plugin_lines_;
   std::vector<std::string> mutator_metric_names_;
-  AppendLog metrics_log_;  // metrics.csv, one row per iteration
-  std::filesystem::path metrics_path_;
+  AppendLog metrics_log_;               // metrics.csv, one row per iteration
+  std::filesystem::path metrics_path_;  // <dir>/metrics.csv
   std::string metrics_row_;
+  bool one_buffer_ = false;  // see choose_one_offspring_buffer
 
   // Batch buffers reused across iterations and loops: fresh multi-megabyte allocations every loop
   // cost page faults that showed up as framework overhead.
