@@ -11,9 +11,9 @@
 // tens of per cent within seconds (whole runs of the same work differ by up to 25 %), which whole
 // runs measured one after the other cannot cancel. The run's time is its wall time minus the bare
 // batches'. Every cost of the run stays on its side: a bare batch waits while the run's checkpoint
-// is being written (it runs later), so the run's background disk writes overlap the run alone, as
-// they would without the benchmark. Bare batches do evict the run's batch buffer from the cache,
-// which only makes the run slower. --whole alternates whole bare loops and whole runs instead.
+// is being written may overlap its background disk writes (a few per cent of a loop's time on
+// Striker, on the other core). Bare batches evict the run's batch buffer from the cache, which
+// only makes the run slower. --whole alternates whole bare loops and whole runs instead.
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
 #include "runtime/run.hpp"
@@ -46,38 +46,11 @@ double process_cpu_seconds() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
-// The number after "key ... :" in a "key: value" file of /proc/thread-self (-1 if absent).
-long thread_counter(const char* file, const std::string& key) {
-  std::ifstream in(std::string("/proc/thread-self/") + file);
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind(key, 0) == 0) return std::stol(line.substr(line.find(':') + 1));
-  return -1;
-}
-
 // CPU seconds of the calling thread.
 double thread_cpu_seconds() {
   timespec ts{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-// Involuntary context switches of the calling thread (preemptions) so far.
-long involuntary_switches() {
-  return thread_counter("status", "nonvoluntary_ctxt_switches:");
-}
-
-// Moves of the calling thread from one CPU to another so far (each leaves its caches behind).
-long cpu_migrations() {
-  return thread_counter("sched", "se.nr_migrations");
-}
-
-// Seconds the calling thread has waited on a run queue while runnable (schedstat field 2).
-double runqueue_wait_seconds() {
-  std::ifstream in("/proc/thread-self/schedstat");
-  double on_cpu = 0, waiting = 0;
-  in >> on_cpu >> waiting;
-  return 1e-9 * waiting;
 }
 
 double median(std::vector<double> v) {
@@ -86,28 +59,6 @@ double median(std::vector<double> v) {
   return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
 }
 
-// CPU seconds of each thread of this process other than the calling one, by thread name (the
-// run's helpers name themselves), from /proc/self/task/*/schedstat (nanoseconds on a CPU).
-std::string helper_cpu_seconds() {
-  const std::string self = std::to_string(::gettid());
-  std::vector<std::pair<std::string, double>> rows;
-  for (const auto& task : fs::directory_iterator("/proc/self/task")) {
-    if (task.path().filename() == self) continue;
-    std::ifstream comm(task.path() / "comm"), sched(task.path() / "schedstat");
-    std::string name;
-    double ns = 0;
-    if (!std::getline(comm, name) || !(sched >> ns)) continue;
-    rows.emplace_back(name, 1e-9 * ns);
-  }
-  std::sort(rows.begin(), rows.end());
-  std::string out;
-  char buf[96];
-  for (const auto& [name, s] : rows) {
-    std::snprintf(buf, sizeof(buf), "%s%s %.3f s", out.empty() ? "" : ", ", name.c_str(), s);
-    out += buf;
-  }
-  return out.empty() ? "none" : out;
-}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -183,13 +134,13 @@ int main(int argc, char** argv) {
     } bare;
     auto bare_batch = [&](const Run& run) {
       auto& [rng, n] = bare.batches[bare.next++];
-      const PolicyShape& shape = run.policy_shape();
+      const PolicyShape& shape = run.components().shape;
       bare.params.resize(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(shape.param_count()));
       bare.traces.resize(n);
       bare.seeds.assign(n, 0);
       rng.fill_uniform(bare.params.data(), static_cast<std::size_t>(bare.params.size()), -1.0, 1.0);
       RolloutBatch b{&shape, &bare.params, bare.seeds.data(), 0, n};
-      run.environment().rollout(b, bare.traces.data());
+      run.components().environment->rollout(b, bare.traces.data());
       for (std::size_t i = 0; i < n; ++i) bare.steps += static_cast<std::uint64_t>(bare.traces[i].steps);
       bare.evaluations += n;
     };
@@ -213,7 +164,6 @@ int main(int argc, char** argv) {
                       : "bare batches interleaved with the run's iterations; median of the repetitions");
     double best_bare = 1e300, best_run = 1e300, best_bare_cpu = 1e300, best_run_cpu = 1e300;
     std::size_t params_count = 0;
-    bool one_buffer = false;
     std::uint64_t bare_steps = 0;
     std::vector<double> ratios, bare_times, run_times, cpu_ratios;
     for (int r = 0; r < repeat; ++r) {
@@ -224,27 +174,19 @@ int main(int argc, char** argv) {
       const Run* running = nullptr;
       if (!whole)
         opt.on_progress = [&](const Progress& p) {
-          if (running->checkpoint_in_flight()) return;
           bare_batches(*running, [&] { return bare.evaluations < p.evaluations; });
         };
       Run run(ex, reg, std::move(opt));
       running = &run;
-      params_count = run.policy_shape().param_count();
-      one_buffer = run.one_offspring_buffer();
+      params_count = run.components().shape.param_count();
       run.create_directory();
       if (whole) bare_batches(run, [] { return true; });
-      const long sw_run = involuntary_switches(), mig_run = cpu_migrations();
-      const double wait_run = runqueue_wait_seconds();
       const double c_run = process_cpu_seconds(), bare_s0 = bare.seconds, bare_cpu0 = bare.cpu;
       const auto t_run = std::chrono::steady_clock::now();
       run.run();
       // Minus the bare batches run from within the run.
       const double run_s = seconds_since(t_run) - (bare.seconds - bare_s0);
       const double run_cpu = process_cpu_seconds() - c_run - (bare.cpu - bare_cpu0);
-      const std::string helpers = helper_cpu_seconds();  // before the run's threads end with it
-      const long preempted = involuntary_switches() - sw_run, migrated = cpu_migrations() - mig_run;
-      const double waited = runqueue_wait_seconds() - wait_run;
-      const std::size_t late = bare.batches.size() - bare.next;
       bare_batches(run, [] { return true; });  // the rest (none unless a checkpoint held them back)
       bare_steps = bare.steps;
       best_bare = std::min(best_bare, bare.seconds);
@@ -257,20 +199,15 @@ int main(int argc, char** argv) {
       run_times.push_back(run_s);
       std::printf("  repetition %d: bare %.3f s (cpu %.3f), qdrun %.3f s (cpu %.3f), ratio %.4f (cpu %.4f)\n", r + 1,
                   bare.seconds, bare.cpu, run_s, run_cpu, bare.seconds / run_s, bare.cpu / run_cpu);
-      std::printf(
-          "    helper threads' cpu: %s; loop thread preempted %ld times, moved to another CPU %ld times, "
-          "waited %.3f s for a CPU%s\n",
-          helpers.c_str(), preempted, migrated, waited,
-          whole ? "" : ("; bare batches run after the run: " + std::to_string(late)).c_str());
       std::fflush(stdout);
       fs::remove_all(dir);
     }
     const double n = static_cast<double>(total);
     std::printf(
-        "experiment=%s params=%zu evaluations=%llu workers=%d offspring_buffers=%s same_policies=%d "
+        "experiment=%s params=%zu evaluations=%llu workers=%d same_policies=%d "
         "bare_us_per_step=%.3f\n",
-        argv[1], params_count, static_cast<unsigned long long>(total), workers, one_buffer ? "one" : "two",
-        same_policies ? 1 : 0, 1e6 * best_bare / static_cast<double>(bare_steps));
+        argv[1], params_count, static_cast<unsigned long long>(total), workers, same_policies ? 1 : 0,
+        1e6 * best_bare / static_cast<double>(bare_steps));
     if (whole) {
       std::printf(
           "bare_loop_evals_per_s=%.1f qdrun_evals_per_s=%.1f ratio=%.4f bare_us_per_eval=%.2f qdrun_us_per_eval=%.2f "

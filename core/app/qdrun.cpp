@@ -5,6 +5,7 @@
 #include "progress.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
+#include "runtime/replay.hpp"
 #include "runtime/run.hpp"
 #include "sweep.hpp"
 
@@ -186,14 +187,14 @@ int run_one(const Cli& cli, const std::string& command_line) {
 int replay_all(const Cli& cli);
 
 // Builds the run of an existing run directory from its own config.toml (for --replay, --latents).
-Run open_run_directory(const Cli& cli, const fs::path& dir, Registry& reg, int workers) {
+std::unique_ptr<Run> open_run_directory(const Cli& cli, const fs::path& dir, Registry& reg, int workers) {
   if (!fs::exists(dir / "config.toml")) throw InputError(dir.string() + ": not a run directory (no config.toml)");
   Document doc = Document::read(dir / "config.toml");
   setup_registry(reg, cli, doc.plugin_paths());
   RunOptions opt;
   opt.directory = dir.string();
   opt.workers = workers;
-  return Run(resolve(doc, reg), reg, std::move(opt));
+  return std::make_unique<Run>(resolve(doc, reg), reg, std::move(opt));
 }
 
 int replay(const Cli& cli) {
@@ -201,12 +202,13 @@ int replay(const Cli& cli) {
   if (cli.cell < 0) throw InputError("--replay needs --cell N (an index from archive.csv)");
   const fs::path dir = cli.replay;
   Registry reg;
-  Run run = open_run_directory(cli, dir, reg, 1);
+  const std::unique_ptr<Run> run = open_run_directory(cli, dir, reg, 1);
   const fs::path svg = cli.svg.empty() ? dir / ("replay-cell-" + std::to_string(cli.cell) + ".svg") : fs::path(cli.svg);
-  const Trace t = run.replay(cli.cell, svg);
+  const Trace t = replay_elite(*run, cli.cell, svg);
   std::int64_t cell = -1;
-  std::vector<double> values(run.descriptor().grid().shape.size());
-  if (t.status == EvalStatus::kOk) run.descriptor().describe(&t, 1, &cell, values.data());
+  const Descriptor& descriptor = *run->components().descriptor;
+  std::vector<double> values(descriptor.grid().shape.size());
+  if (t.status == EvalStatus::kOk) descriptor.describe(&t, 1, &cell, values.data());
   std::printf("replayed cell %lld: %s, %d steps, lands in cell %lld%s\nwrote %s\n", cli.cell, to_string(t.status),
               t.steps, static_cast<long long>(cell),
               cell == cli.cell ? " (as stored)" : " (differs from the stored cell)", svg.c_str());
@@ -218,9 +220,9 @@ int replay_all(const Cli& cli) {
   if (cli.cell >= 0 || !cli.svg.empty()) throw InputError("--replay --all takes no --cell or --svg (see --traces)");
   const fs::path dir = cli.replay;
   Registry reg;
-  Run run = open_run_directory(cli, dir, reg, cli.workers);
+  const std::unique_ptr<Run> run = open_run_directory(cli, dir, reg, cli.workers);
   const fs::path csv = cli.traces.empty() ? dir / "traces.csv" : fs::path(cli.traces);
-  const Run::ReplayAllResult r = run.replay_all(csv);
+  const ReplayAllResult r = replay_all(*run, run->workers(), csv);
   std::printf("replayed %zu elites, %zu land in their stored cell\nwrote %s\n", r.elites, r.as_stored, csv.c_str());
   return kExitOk;
 }
@@ -231,11 +233,11 @@ int replay_all(const Cli& cli) {
 int latents(const Cli& cli) {
   const fs::path dir = cli.latents;
   Registry reg;
-  Run run = open_run_directory(cli, dir, reg, 1);
-  run.open_for_inspection();
+  const std::unique_ptr<Run> run = open_run_directory(cli, dir, reg, 1);
+  run->open_for_inspection();
   const fs::path csv = cli.output.empty() ? dir / "latents.csv" : fs::path(cli.output);
-  run.write_latents(csv);
-  std::printf("wrote the latent codes of %zu dataset entries to %s\n", run.dataset().size(), csv.c_str());
+  write_latents(*run, csv);
+  std::printf("wrote the latent codes of %zu dataset entries to %s\n", run->dataset().size(), csv.c_str());
   return kExitOk;
 }
 

@@ -1,5 +1,6 @@
 #include "sweep.hpp"
 
+#include "runtime/components.hpp"
 #include "runtime/evaluator.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/run.hpp"
@@ -139,10 +140,10 @@ struct Checked {
 };
 
 Checked check(const Document& doc, const Registry& reg) {
-  runtime::RunOptions opt;
-  opt.workers = 1;
-  runtime::Run run(runtime::resolve(doc, reg), reg, std::move(opt));
-  return {run.experiment().settings, canonical(run.experiment().resolved_toml), run.directory()};
+  runtime::Experiment ex = runtime::resolve(doc, reg);
+  runtime::build_components(ex, reg);  // every factory and cross-check; nothing is written
+  const auto& s = ex.settings;
+  return {s, canonical(ex.resolved_toml), fs::path(s.output_dir) / s.name / ("seed-" + std::to_string(s.seed))};
 }
 
 PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::uint64_t* seed, RegistryCache& regs) {

@@ -1,4 +1,5 @@
 // Key functions of the interfaces (pinning their type information in libqd_core) and defaults.
+#include <qd/archive.hpp>
 #include <qd/component.hpp>
 #include <qd/descriptor.hpp>
 #include <qd/environment.hpp>
@@ -12,6 +13,7 @@
 namespace qd {
 
 Component::~Component() = default;
+ArchiveView::~ArchiveView() = default;
 Environment::~Environment() = default;
 Descriptor::~Descriptor() = default;
 Representation::~Representation() = default;
@@ -34,6 +36,17 @@ void Representation::reconstruction_errors(const Matrix& theta, Vector& errors) 
   encode(theta, z);
   decode(z, rec);
   errors = (theta - rec).rowwise().norm();
+}
+
+double ArchiveView::coverage() const noexcept {
+  return static_cast<double>(size()) / static_cast<double>(cells());
+}
+
+double ArchiveView::mean_recn_error() const {
+  const std::size_t n = size();
+  double sum = 0.0;
+  for (std::size_t slot = 0; slot < n; ++slot) sum += recn_error(slot);
+  return n == 0 ? 0.0 : sum / static_cast<double>(n);
 }
 
 void Mutator::begin_loop(const LoopContext&) {}

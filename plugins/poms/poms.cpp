@@ -71,7 +71,7 @@ void PomsMutator::begin_loop(const LoopContext& ctx) {
     return;
   }
   const Representation& rep = latent_model(ctx.representation, "poms: begin_loop needs a latent representation");
-  const Archive& archive = *ctx.archive;
+  const ArchiveView& archive = *ctx.archive;
   if (archive.size() == 0) {
     threshold_ = 0.0;
     return;

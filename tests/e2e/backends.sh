@@ -1,7 +1,6 @@
 #!/usr/bin/env bash
 # Every local backend and worker count gives the serial run's archive and metrics (except wall time):
-# threads 2, processes 2 and processes 3 against threads 1; and the serial run gives the same with one
-# streamed offspring buffer and with two ([evaluation] offspring_buffers; auto picks one by cache size).
+# threads 2, processes 2 and processes 3 against threads 1.
 source "$(dirname "$0")/lib.sh"
 qdrun=$1 exp=$2 out=$3; shift 3
 rm -rf "$out"
@@ -11,11 +10,5 @@ for cfg in "threads 2" "processes 2" "processes 3"; do
   "$qdrun" "$exp" -o "$out/$backend-$n" -q --backend "$backend" --workers "$n" "$@"
   grep -q "^backend = \"$backend\"" "$(run_dir "$out/$backend-$n")/provenance.toml"
   same_results "$(run_dir "$out/serial")" "$(run_dir "$out/$backend-$n")"
-done
-for buffers in one two; do
-  "$qdrun" "$exp" -o "$out/serial-$buffers" -q --backend threads --workers 1 \
-    --set "evaluation.offspring_buffers=\"$buffers\"" "$@"
-  grep -q "^offspring_buffers = \"$buffers\"" "$(run_dir "$out/serial-$buffers")/provenance.toml"
-  same_results "$(run_dir "$out/serial")" "$(run_dir "$out/serial-$buffers")"
 done
 echo "backends ok"

@@ -192,7 +192,7 @@ TEST(ArchiveCsv, ParsesBackToTheArchiveInCellOrder) {
   qd::runtime::Run run(std::move(ex), registry(), std::move(opt));
   run.create_directory();
   ASSERT_TRUE(run.run());
-  const Archive& a = run.archive();
+  const qd::runtime::Archive& a = run.archive();
   const std::size_t P = a.param_count();
   ASSERT_GT(a.size(), std::size_t{200});
 

@@ -47,40 +47,6 @@ TEST(Evaluator, OneAndThreeWorkersGiveIdenticalTracesAndCells) {
   EXPECT_EQ(a.cells[5], -1);
 }
 
-// A serial evaluator hands the batch over in shrinking leading parts, each final when reported
-// (what the loop inserts then is what a whole-batch evaluation gives); threads report once.
-TEST(Evaluator, SerialStreamingReportsFinalLeadingRowsInShrinkingParts) {
-  arm::ArmEnvironment env(defaults_of(arm::kArmParams, "environment"), BuildContext{});
-  arm::EndpointDescriptor desc(defaults_of(arm::kEndpointParams, "descriptor"), BuildContext{});
-  const PolicyShape shape(6, {8, 8}, 3);
-  Matrix params = random_params(shape, 200, 13);
-  std::vector<std::uint64_t> seeds(200, 0);
-  runtime::ThreadEvaluator serial(env, desc, shape, 1), two(env, desc, shape, 2);
-  runtime::Evaluations whole, streamed;
-  serial.evaluate(params, seeds, whole);
-
-  ASSERT_TRUE(serial.streams_rows());
-  std::vector<std::size_t> ends;
-  serial.evaluate_streaming(params, seeds, streamed, [&](std::size_t end) {
-    // Rows [0, end) already hold their final values.
-    for (std::size_t i = ends.empty() ? 0 : ends.back(); i < end; ++i) {
-      EXPECT_EQ(streamed.cells[i], whole.cells[i]) << "row " << i;
-      EXPECT_EQ(streamed.fitness[i], whole.fitness[i]) << "row " << i;
-    }
-    ends.push_back(end);
-  });
-  expect_same(whole, streamed);
-  // A quarter of the remaining rows each time, at least 4: 50, 37, 28, 21, 16, 12, 9, 6, 5, 4, 4, 4, 4.
-  const std::vector<std::size_t> expected{50, 87, 115, 136, 152, 164, 173, 179, 184, 188, 192, 196, 200};
-  EXPECT_EQ(ends, expected);
-
-  EXPECT_FALSE(two.streams_rows());
-  ends.clear();
-  two.evaluate_streaming(params, seeds, streamed, [&](std::size_t end) { ends.push_back(end); });
-  EXPECT_EQ(ends, std::vector<std::size_t>{200});
-  expect_same(whole, streamed);
-}
-
 TEST(Evaluator, ArmDescriptorOfAStretchedArm) {
   // All-zero parameters: zero actions, the arm stays stretched along +x, end effector (1, 0).
   arm::ArmEnvironment env(defaults_of(arm::kArmParams, "environment"), BuildContext{});

@@ -28,6 +28,16 @@
 
 namespace qd {
 
+// Selected parents: copies of the elites' rows.
+struct Parents {
+  Matrix theta;       // n × P
+  Vector recn_error;  // stored reconstruction errors (0 without a model)
+  std::vector<std::int64_t> cells;
+};
+
+// What the archive did with one offspring.
+enum class Insertion : std::uint8_t { kAdded = 0, kReplaced = 1, kRejected = 2, kInvalid = 3 };
+
 struct QD_EXPORT Offspring {
   Matrix theta;                          // count × P
   Matrix latent;                         // count × LD (only when LD > 0)
@@ -43,7 +53,7 @@ struct QD_EXPORT Offspring {
 
 struct LoopContext {
   int loop = 0;
-  const Archive* archive = nullptr;
+  const ArchiveView* archive = nullptr;
   const Dataset* dataset = nullptr;
   const Representation* representation = nullptr;
 };
@@ -53,7 +63,7 @@ struct MutateContext {
   int iteration = 0;
   Rng* rng = nullptr;
   const Representation* representation = nullptr;  // never null; latent_size() may be 0
-  const Archive* archive = nullptr;                // never null
+  const ArchiveView* archive = nullptr;            // never null
 };
 
 // What happened to the last batch, for adaptive operators.

@@ -7,7 +7,6 @@
 #include <unistd.h>
 #include <algorithm>
 #include <cstdlib>
-#include <fstream>
 #include <string>
 
 namespace qd::runtime {
@@ -15,21 +14,6 @@ namespace qd::runtime {
 int hardware_workers() {
   const unsigned n = std::thread::hardware_concurrency();
   return n == 0 ? 1 : static_cast<int>(n);
-}
-
-std::size_t core_l2_cache_bytes() {
-#ifdef _SC_LEVEL2_CACHE_SIZE
-  if (const long bytes = ::sysconf(_SC_LEVEL2_CACHE_SIZE); bytes > 0) return static_cast<std::size_t>(bytes);
-#endif
-  // glibc answers from CPUID on x86; elsewhere the kernel's description, e.g. "1024K".
-  std::ifstream in("/sys/devices/system/cpu/cpu0/cache/index2/size");
-  std::size_t value = 0;
-  std::string unit;
-  if (!(in >> value)) return 0;
-  in >> unit;
-  if (unit == "K") return value << 10;
-  if (unit == "M") return value << 20;
-  return unit.empty() ? value : 0;
 }
 
 WorkerPool::WorkerPool(int threads) {
@@ -139,12 +123,6 @@ void RowEvaluator::run(const double* params, const std::uint64_t* seeds, std::si
 
 Evaluator::~Evaluator() = default;
 
-void Evaluator::evaluate_streaming(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds,
-                                   Evaluations& out, const RowsReady& ready) {
-  evaluate(params, episode_seeds, out);
-  ready(static_cast<std::size_t>(params.rows()));
-}
-
 ThreadEvaluator::ThreadEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers)
     : env_(env), desc_(desc), shape_(shape), dims_(desc.grid().shape.size()), pool_(workers) {}
 
@@ -188,22 +166,6 @@ void ThreadEvaluator::evaluate(const Matrix& params, const std::vector<std::uint
     const std::size_t begin = c * chunk;
     evaluate_rows(params, seeds.data(), begin, std::min(n, begin + chunk), out);
   });
-}
-
-void ThreadEvaluator::evaluate_streaming(const Matrix& params, const std::vector<std::uint64_t>& seeds,
-                                         Evaluations& out, const RowsReady& ready) {
-  if (!streams_rows()) {
-    Evaluator::evaluate_streaming(params, seeds, out, ready);
-    return;
-  }
-  const std::size_t n = begin_batch(params, seeds, out);
-  for (std::size_t begin = 0; begin < n;) {
-    const std::size_t end = std::min(n, begin + std::max(kMinStreamRows, (n - begin) / 4));
-    evaluate_rows(params, seeds.data(), begin, end, out);
-    ready(end);
-    begin = end;
-  }
-  if (n == 0) ready(0);
 }
 
 std::string resolve_backend(const std::string& requested, int workers) {

@@ -84,17 +84,6 @@ class Evaluator {
   virtual const char* backend() const noexcept = 0;
   virtual void evaluate(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, Evaluations& out) = 0;
 
-  // Called on the loop's thread each time rows [0, end) of the batch are final, with increasing
-  // `end`, the last time with end == rows.
-  using RowsReady = std::function<void(std::size_t end)>;
-  // evaluate() that hands over finished leading rows while the rest of the batch is evaluated, so
-  // the loop can insert (and have copied) the first rows while their parameters are still in this
-  // core's cache. The default reports the whole batch once, at the end.
-  virtual void evaluate_streaming(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds,
-                                  Evaluations& out, const RowsReady& ready);
-  // True when evaluate_streaming() reports a batch in several parts while it is still being
-  // evaluated (the default reports it once, when it is done).
-  virtual bool streams_rows() const noexcept { return false; }
   // MPI worker ranks: serve rank 0 until it stops the job. Other backends have no remote side.
   virtual void serve() {}
 };
@@ -132,12 +121,6 @@ class ThreadEvaluator final : public Evaluator {
   int workers() const noexcept override { return pool_.size(); }
   const char* backend() const noexcept override { return "threads"; }
   void evaluate(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, Evaluations& out) override;
-  // Serial: parts shrink towards the end of the batch (a quarter of the remaining rows, at least
-  // kMinStreamRows), so little is left to consume once the batch is done.
-  void evaluate_streaming(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, Evaluations& out,
-                          const RowsReady& ready) override;
-  bool streams_rows() const noexcept override { return pool_.size() == 1; }
-  static constexpr std::size_t kMinStreamRows = 4;
 
  private:
   // Checks the seeds, sizes `out` and the trace scratch for the batch; returns its row count.
@@ -169,9 +152,6 @@ std::unique_ptr<Evaluator> make_evaluator(const EvaluatorSpec& spec, const Envir
 
 // Number of hardware threads (at least 1).
 int hardware_workers();
-
-// Size in bytes of the calling core's L2 cache (0 if the system does not say).
-std::size_t core_l2_cache_bytes();
 
 // MPI session helpers; without QD_WITH_MPI they report a single process and mpi_start() is a no-op.
 bool mpi_built() noexcept;

@@ -156,10 +156,6 @@ const ParamSpec kEvaluationParams[] = {
     param_float("timeout_seconds", "300", 0.0, 1e9,
                 "a worker process or MPI rank that makes no progress this long in a batch is hung: the run "
                 "stops (0 = wait forever; the threads backend cannot time out)"),
-    param_string("offspring_buffers", "\"auto\"", "auto|one|two",
-                 "serial evaluation: one = one offspring buffer, inserted and copied in parts while the batch is "
-                 "evaluated; two = two alternating buffers, evaluated whole; auto = one when it fits this core's "
-                 "L2 cache; results do not depend on it"),
 };
 
 struct ComponentTable {
@@ -452,7 +448,6 @@ Experiment resolve(const Document& doc, const Registry& registry) {
   s.workers = static_cast<int>(w.get_int("workers"));
   s.backend = w.get_string("backend");
   s.timeout_seconds = w.get_float("timeout_seconds");
-  s.offspring_buffers = w.get_string("offspring_buffers");
 
   toml::table resolved;
   auto put_core = [&](const char* name, const Config& cfg, const ParamSpec* specs, std::size_t n) {

@@ -32,7 +32,6 @@ struct ExperimentSettings {
   int workers = 0;               // 0 = all cores
   std::string backend = "auto";  // auto | threads | processes | mpi
   double timeout_seconds = 0;
-  std::string offspring_buffers = "auto";  // auto | one | two
 };
 
 // One component table after validation.

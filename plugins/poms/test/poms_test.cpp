@@ -2,10 +2,10 @@
 // rules, the no-jacobian latent std, determinism.
 #include "poms.hpp"
 
-#include <qd/archive.hpp>
 #include <qd/dataset.hpp>
 #include <qd/errors.hpp>
 #include <qd/rng.hpp>
+#include <qd/testing/elites.hpp>
 
 #ifdef QD_POMS_TEST_WITH_PCA
 #include "pca.hpp"
@@ -89,12 +89,10 @@ class EluModel final : public qd::Representation {
 };
 
 // Archive whose stored errors have the given mean (two elites, errors 2m − x and x).
-qd::Archive archive_with_mean(std::size_t params, double a, double b) {
-  qd::Archive archive(10, params, 1);
+qd::testing::Elites archive_with_mean(std::size_t params, double a, double b) {
+  qd::testing::Elites archive(10, params, 1);
   const std::vector<double> theta(params, 0.0);
-  const double desc = 0.0;
-  archive.offer(0, theta.data(), &desc, 0.0, a, false);
-  archive.offer(1, theta.data(), &desc, 0.0, b, false);
+  archive.add(0, theta, a).add(1, theta, b);
   return archive;
 }
 
@@ -107,7 +105,7 @@ qd::Parents parents_of(const Matrix& theta, std::vector<double> errors) {
 }
 
 qd::Offspring run(qd::Mutator& mutator, const qd::Parents& parents, const qd::Representation& rep, int loop,
-                  int iteration, const qd::Archive& archive) {
+                  int iteration, const qd::ArchiveView& archive) {
   qd::Rng rng(77, qd::Stream::kMutation, static_cast<std::uint64_t>(loop), static_cast<std::uint64_t>(iteration));
   qd::MutateContext ctx;
   ctx.loop = loop;
@@ -120,7 +118,7 @@ qd::Offspring run(qd::Mutator& mutator, const qd::Parents& parents, const qd::Re
   return out;
 }
 
-void begin(qd::Mutator& mutator, const qd::Archive& archive, const qd::Representation& rep,
+void begin(qd::Mutator& mutator, const qd::ArchiveView& archive, const qd::Representation& rep,
            const qd::Dataset* dataset = nullptr) {
   qd::LoopContext ctx;
   ctx.loop = 1;
@@ -182,7 +180,7 @@ TEST(PomsTest, LatentCovarianceIsSigmaJtJForNonLinearDecoder) {
   model.decoder_jacobians(Matrix(z0.array() - 1.0), jac_far);
   EXPECT_GT((jac_far[0] - jac[0]).cwiseAbs().maxCoeff(), 0.01);  // J depends on z (0 for a linear decoder)
   EXPECT_GT(std::abs(jtj(0, 1)), 0.05 * std::sqrt(jtj(0, 0) * jtj(1, 1)));
-  qd::Archive archive = archive_with_mean(p, 1.0, 1.0);  // threshold 1 > every parent's error 0
+  qd::testing::Elites archive = archive_with_mean(p, 1.0, 1.0);  // threshold 1 > every parent's error 0
 
   const double sigma = 0.3;
   const std::size_t n = 20001;  // H = {0}, 20000 latent offspring
@@ -220,7 +218,7 @@ TEST(PomsTest, PcaLatentCovarianceIsSigmaIdentity) {
   const Matrix parent = gaussian(1, p, 53);
   Matrix z0;
   pca.encode(parent, z0);
-  qd::Archive archive = archive_with_mean(p, 1.0, 1.0);
+  qd::testing::Elites archive = archive_with_mean(p, 1.0, 1.0);
   const std::size_t n = 20001;
   const qd::Parents parents = parents_of(parent.replicate(n, 1), std::vector<double>(n, 0.0));
   const double sigma = 0.1;
@@ -251,7 +249,7 @@ Matrix distinct_parents(Eigen::Index n, Eigen::Index p) {
 TEST(PomsTest, SplitFollowsThresholdAndOrder) {
   const int p = 4;
   EluModel model(2, 3, p);
-  qd::Archive archive = archive_with_mean(p, 0.1, 0.5);  // mean 0.3
+  qd::testing::Elites archive = archive_with_mean(p, 0.1, 0.5);  // mean 0.3
   PomsMutator mutator(1e-8, SigmaMeaning::kStd, ThresholdMode::kArchiveMean);
   begin(mutator, archive, model);
   EXPECT_DOUBLE_EQ(mutator.threshold(), 0.3);
@@ -281,7 +279,7 @@ TEST(PomsTest, SplitFollowsThresholdAndOrder) {
 TEST(PomsTest, AllBelowThresholdGivesHZeroAllAboveDropsLast) {
   const int p = 4;
   EluModel model(2, 3, p);
-  qd::Archive archive = archive_with_mean(p, 0.1, 0.5);  // threshold 0.3
+  qd::testing::Elites archive = archive_with_mean(p, 0.1, 0.5);  // threshold 0.3
   PomsMutator mutator(1e-8, SigmaMeaning::kVariance, ThresholdMode::kArchiveMean);
   begin(mutator, archive, model);
   const Matrix theta = distinct_parents(4, p);
@@ -305,10 +303,9 @@ TEST(PomsTest, RefreshedThresholdUsesCurrentModelErrors) {
   const int p = 5;
   EluModel model(2, 4, p);
   // Two elites with stale stored errors 0; the refreshed threshold is their current-model mean.
-  qd::Archive archive(10, p, 1);
+  qd::testing::Elites archive(10, p, 1);
   const Matrix elites = gaussian(2, p, 60);
-  const double desc = 0.0;
-  for (int i = 0; i < 2; ++i) archive.offer(i, elites.row(i).data(), &desc, 0.0, 0.0, false);
+  for (int i = 0; i < 2; ++i) archive.add(i, std::vector<double>(elites.row(i).data(), elites.row(i).data() + p));
   Vector current;
   model.reconstruction_errors(elites, current);
   PomsMutator refreshed(0.1, SigmaMeaning::kVariance, ThresholdMode::kRefreshed);
@@ -328,7 +325,7 @@ TEST(PomsTest, RefreshedThresholdUsesCurrentModelErrors) {
 TEST(PomsTest, DeterministicPerRngKey) {
   const int p = 6;
   EluModel model(3, 4, p);
-  qd::Archive archive = archive_with_mean(p, 0.1, 0.5);
+  qd::testing::Elites archive = archive_with_mean(p, 0.1, 0.5);
   PomsMutator mutator(0.1, SigmaMeaning::kVariance, ThresholdMode::kArchiveMean);
   begin(mutator, archive, model);
   const qd::Parents parents = parents_of(gaussian(8, p, 70), {0.9, 0.0, 0.5, 0.1, 0.0, 0.7, 0.2, 0.0});
@@ -375,7 +372,7 @@ TEST(PomsTest, NoJacobianUsesPopulationStdOfEncodedDataset) {
   const Matrix data = gaussian(40, p, 80, 1.5);
   qd::Dataset dataset(p);
   for (Eigen::Index i = 0; i < data.rows(); ++i) dataset.add(data.row(i).data(), i, 0);
-  qd::Archive archive = archive_with_mean(p, 0.1, 0.5);
+  qd::testing::Elites archive = archive_with_mean(p, 0.1, 0.5);
 
   NoJacobianMutator mutator(1.0);
   begin(mutator, archive, model, &dataset);
@@ -422,7 +419,7 @@ TEST(PomsTest, NoJacobianStepDistribution) {
   const Matrix data = gaussian(40, p, 90, 1.5);
   qd::Dataset dataset(p);
   for (Eigen::Index i = 0; i < data.rows(); ++i) dataset.add(data.row(i).data(), i, 0);
-  qd::Archive archive = archive_with_mean(p, 0.1, 0.5);
+  qd::testing::Elites archive = archive_with_mean(p, 0.1, 0.5);
   NoJacobianMutator mutator(1.0);
   begin(mutator, archive, model, &dataset);
   const std::size_t n = 20000;

@@ -1,0 +1,85 @@
+#include "runtime/components.hpp"
+
+#include <qd/errors.hpp>
+
+namespace qd::runtime {
+
+std::string toml_string(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"' || c == '\\') out += '\\';
+    if (c == '\n') {
+      out += "\\n";
+      continue;
+    }
+    out += c;
+  }
+  return out + "\"";
+}
+
+namespace {
+// Runs a factory; a ConfigError from it is reported at the key's place in the experiment file.
+template <class T>
+Owned<T> create(const Registry& registry, const ComponentConfig& cc, const BuildContext& ctx) {
+  try {
+    return registry.create<T>(*cc.entry, cc.config, ctx);
+  } catch (const ConfigError& e) {
+    throw ConfigError(e.key(), cc.config.where(e.key()) + ": [" + cc.table + "]." + e.key() + ": " + e.what());
+  }
+}
+}  // namespace
+
+Components build_components(Experiment& ex, const Registry& registry) {
+  Components c;
+  BuildContext ctx;
+  ctx.seed = ex.settings.seed;
+  c.environment = create<Environment>(registry, ex.environment, ctx);
+  const EnvironmentInfo info = c.environment->info();
+  if (info.observation_size <= 0 || info.action_size <= 0)
+    throw PluginError("environment '" + ex.environment.type + "' reports no observation or action size");
+  c.shape = PolicyShape(info.observation_size, ex.settings.hidden, info.action_size);
+  ctx.policy = &c.shape;
+
+  if (!ex.descriptor.entry) {
+    if (info.default_descriptor.empty())
+      throw InputError("environment '" + ex.environment.type +
+                       "' has no default descriptor; add [descriptor] type = ...");
+    resolve_default_component(ex, ex.descriptor, registry.require(info.default_descriptor, Kind::kDescriptor));
+  }
+  c.descriptor = create<Descriptor>(registry, ex.descriptor, ctx);
+  c.grid = c.descriptor->grid();
+  if (c.grid.cells <= 0 || c.grid.shape.empty())
+    throw PluginError("descriptor '" + ex.descriptor.type + "' declares an empty grid");
+
+  c.representation = create<Representation>(registry, ex.representation, ctx);
+  const int latent = c.representation->latent_size();
+  if (latent < 0 || static_cast<std::size_t>(latent) > c.shape.param_count())
+    throw ConfigError("latent", ex.representation.config.where("latent") + ": [representation] latent size " +
+                                    std::to_string(latent) + " is larger than the policy's parameter count " +
+                                    std::to_string(c.shape.param_count()));
+  ctx.latent_size = latent;
+  c.mutator = create<Mutator>(registry, ex.mutator, ctx);
+  c.initial = create<Mutator>(registry, ex.initial, ctx);
+  if (c.initial->uses_parents())
+    throw InputError("[initial] type = \"" + ex.initial.type +
+                     "\" needs parents, but loop 0 has none; use a sampler such as \"uniform\" or \"glorot\"");
+  for (const auto& [cc, obj] : {std::pair{&ex.mutator, c.mutator.get()}, std::pair{&ex.initial, c.initial.get()}})
+    if (obj->needs_latent() && latent == 0)
+      throw InputError("[" + cc->table + "] type = \"" + cc->type +
+                       "\" needs a representation with a latent space, but [representation] type = \"" +
+                       ex.representation.type + "\" has none (use \"autoencoder\" or \"pca\")");
+  c.metric_names = c.mutator->metric_names();
+  c.mutator_type = ex.mutator.type;
+  c.initial_type = ex.initial.type;
+  c.representation_type = ex.representation.type;
+
+  for (const ComponentConfig* cc : {&ex.environment, &ex.descriptor, &ex.representation, &ex.mutator, &ex.initial}) {
+    const PluginInfo& pi = *cc->entry->plugin->info;
+    c.provenance.push_back("{ table = " + toml_string(cc->table) + ", component = " + toml_string(cc->type) +
+                           ", plugin = " + toml_string(pi.plugin_name) + ", version = " +
+                           toml_string(pi.plugin_version) + ", path = " + toml_string(cc->entry->plugin->path) + " }");
+  }
+  return c;
+}
+
+}  // namespace qd::runtime

@@ -1,0 +1,48 @@
+// The run directory <output>/<name>/seed-<seed>: the files a run writes besides its checkpoint.
+//   config.toml        the resolved configuration
+//   provenance*.toml   who, where and with what it ran (one file per session)
+//   status             running | complete | stopped ... | failed: ...
+//   metrics.csv        one row per iteration; training.csv one row per loop (appended logs)
+//   archive.csv, archive/loop-NNNNN.csv   the final archive and snapshots
+#pragma once
+
+#include "runtime/checkpoint.hpp"
+#include "runtime/csv.hpp"
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace qd::runtime {
+
+class RunDirectory {
+ public:
+  explicit RunDirectory(std::filesystem::path dir);
+
+  const std::filesystem::path& path() const noexcept { return dir_; }
+
+  // A fresh run: creates the directory (error if it already holds a run) and writes the config
+  // and the headers of the logs.
+  void create(const std::string& config, const std::string& metrics_header);
+  // An existing run to continue: error if the directory is not writable.
+  void check_writable() const;
+
+  void write_config(const std::string& config) const;
+  // provenance.toml for the session that starts at loop 0, provenance-resume-loop-L.toml else.
+  void write_provenance(int first_loop, const std::string& text) const;
+  void set_status(const std::string& status) const;
+
+  void append_metrics(const std::string& row) { metrics_.append(row); }
+  void append_training(const std::string& row) { training_.append(row); }
+
+  // The logs the run appends to (every *.csv but archive.csv) and their sizes now.
+  std::vector<LogSize> log_sizes() const;
+  // Cuts the logs back to the sizes a checkpoint recorded and removes logs created after it.
+  void cut_logs(const std::vector<LogSize>& sizes) const;
+
+ private:
+  std::filesystem::path dir_;
+  AppendLog metrics_, training_;
+};
+
+}  // namespace qd::runtime
