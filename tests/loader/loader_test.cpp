@@ -57,6 +57,23 @@ TEST(Loader, RejectsForeignBuildFingerprint) {
   EXPECT_NE(msg.find("does not match the core"), std::string::npos) << msg;
 }
 
+// A plugin built with -D_GLIBCXX_DEBUG (other std:: container layouts) is refused, both
+// fingerprints named.
+TEST(Loader, RejectsLibraryDebugMode) {
+  Registry reg;
+  const std::string msg = load_error(reg, plugin("debug_stl"));
+  EXPECT_NE(msg.find("glibcxx-debug"), std::string::npos) << msg;
+  EXPECT_NE(msg.find(std::string("the core's '") + qd::build_fingerprint() + "'"), std::string::npos) << msg;
+}
+
+// The fingerprint carries a hash of the public headers the core was built from.
+TEST(Loader, FingerprintHashesThePublicHeaders) {
+  const std::string fp = qd::build_fingerprint();
+  const auto at = fp.find(";headers=");
+  ASSERT_NE(at, std::string::npos) << fp;
+  EXPECT_EQ(fp.substr(at + 9, 16).find_first_not_of("0123456789abcdef"), std::string::npos) << fp;
+}
+
 TEST(Loader, RejectsMissingEntrySymbol) {
   Registry reg;
   const std::string msg = load_error(reg, plugin("no_entry"));

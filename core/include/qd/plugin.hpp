@@ -15,7 +15,8 @@
 //   QD_PLUGIN("my_plugin", "1.0.0",
 //             qd::component<MyMutator>(qd::Kind::kMutator, "my-mutator", "One-line summary.", kMyParams))
 //
-// READ ME if you change anything under core/include/qd/: bump kPluginAbiVersion.
+// Any change under core/include/qd/ changes the build fingerprint (it hashes the headers); bump
+// kPluginAbiVersion too when the layout of PluginInfo or ComponentInfo changes.
 #pragma once
 
 #include <qd/component.hpp>
@@ -37,7 +38,7 @@
 
 namespace qd {
 
-inline constexpr std::uint32_t kPluginAbiVersion = 2;
+inline constexpr std::uint32_t kPluginAbiVersion = 3;
 
 enum class Kind : std::uint32_t { kEnvironment = 1, kDescriptor = 2, kRepresentation = 3, kMutator = 4 };
 QD_EXPORT const char* to_string(Kind kind) noexcept;
