@@ -1,6 +1,8 @@
 // Walker and kicker episodes: gym 0.11's BipedalWalker robot on Box2D 2.4.1 (spec 1.0, 1.3-1.6).
 #include "bipedal.hpp"
 
+#include <qd/errors.hpp>
+
 #include <box2d/box2d.h>
 
 #include <algorithm>
@@ -289,7 +291,7 @@ class Scene {
   }
 
   // Writes the observation; returns false when it is not finite.
-  bool observe(bool mix_scale, double* obs) const {
+  bool observe(const EpisodeOptions& options, double* obs) const {
     const b2Vec2 vel = hull_->GetLinearVelocity();
     const b2Vec2 pos = hull_->GetPosition();
     obs[0] = hull_->GetAngle();
@@ -306,19 +308,25 @@ class Scene {
     obs[11] = joints_[3]->GetJointAngle() + 1.0;
     obs[12] = joints_[3]->GetJointSpeed() / kSpeedKnee;
     obs[13] = contacts_.ground_contact[1] ? 1.0 : 0.0;
-    const double s = mix_scale ? kMixScale : 1.0;
-    for (int i = 0; i < kLidarRays; ++i) obs[14 + i] = s * lidar_[i];
-    obs[24] = s * pos.x;
-    obs[25] = s * pos.y;
+    for (int i = 0; i < kLidarRays; ++i) obs[14 + i] = lidar_[i];
+    obs[24] = pos.x;
+    obs[25] = pos.y;
     int n = kWalkerObservationSize;
     if (ball_ != nullptr) {
       const b2Vec2 bp = ball_->GetPosition();
       const b2Vec2 bv = ball_->GetLinearVelocity();
-      obs[26] = s * bp.x;
-      obs[27] = s * bp.y;
-      obs[28] = s * bv.x;
-      obs[29] = s * bv.y;
+      obs[26] = bp.x;
+      obs[27] = bp.y;
+      obs[28] = bv.x;
+      obs[29] = bv.y;
       n = kKickerObservationSize;
+    }
+    if (options.normalised) {
+      for (int i : {24, 26}) obs[i] /= kTerrainFull;
+      for (int i : {25, 27}) obs[i] = (obs[i] - kNormalisedYOffset) / kNormalisedYRange;
+    } else if (options.mix_scale) {
+      const auto [first, last] = mix_scaled_range(task_, options.mix_scale_elements);
+      for (int i = first; i < last; ++i) obs[i] *= kMixScale;
     }
     for (int i = 0; i < n; ++i)
       if (!std::isfinite(obs[i])) return false;
@@ -399,6 +407,11 @@ int observation_size(Task task) noexcept {
   return task == Task::kWalker ? kWalkerObservationSize : kKickerObservationSize;
 }
 
+std::pair<int, int> mix_scaled_range(Task task, MixScaleElements elements) noexcept {
+  if (elements == MixScaleElements::kPaper) return task == Task::kWalker ? std::pair{24, 26} : std::pair{0, 0};
+  return {14, observation_size(task)};
+}
+
 void warm_up_box2d() {
   static std::once_flag once;
   std::call_once(once, [] {
@@ -442,7 +455,7 @@ void run_episode(const EpisodeOptions& options, Policy& policy, Trace& trace, st
 
   // Reset: one world step with zero action; the first observation and trajectory row follow it.
   scene.step(action);
-  if (!scene.observe(options.mix_scale, obs)) {
+  if (!scene.observe(options, obs)) {
     fail(EvalStatus::kDiverged, "non-finite state after reset");
   } else {
     if (walker) scene.walker_reward(action, obs[0]);  // sets gym's prev_shaping; this reward is discarded
@@ -458,7 +471,7 @@ void run_episode(const EpisodeOptions& options, Policy& policy, Trace& trace, st
       }
       scene.step(action);
       trace.steps = step + 1;
-      if (!scene.observe(options.mix_scale, obs)) {
+      if (!scene.observe(options, obs)) {
         fail(EvalStatus::kDiverged, "non-finite state");
         break;
       }
@@ -483,6 +496,12 @@ void run_episode(const EpisodeOptions& options, Policy& policy, Trace& trace, st
 BipedalEnvironment::BipedalEnvironment(Task task, const Config& cfg) {
   options_.task = task;
   options_.mix_scale = cfg.get_bool("mix_scale");
+  // The core has already rejected any value outside the declared choices.
+  options_.mix_scale_elements =
+      cfg.get_string("mix_scale_elements") == "paper" ? MixScaleElements::kPaper : MixScaleElements::kCompanion;
+  options_.normalised = cfg.has("normalised") && cfg.get_bool("normalised");
+  if (options_.normalised && options_.mix_scale)
+    throw ConfigError("normalised", "normalised and mix_scale are two different observations: set at most one");
   options_.max_steps = static_cast<int>(cfg.get_int("max_steps"));
   warm_up_box2d();
 }

@@ -13,17 +13,38 @@
 #include <array>
 #include <cstdint>
 #include <ostream>
+#include <utility>
 #include <vector>
 
 namespace qd::bipedal {
 
 enum class Task { kWalker, kKicker };
 
+// Which observation entries mix-scale multiplies by 100.
+enum class MixScaleElements {
+  kCompanion,  // the companion code (spec 1.4, 1.6): walker 14..25 (lidar, hull x, y); kicker 14..29 (lidar,
+               // hull x, y, ball x, y, ball vx, vy)
+  kPaper,      // the paper's text: walker 24, 25 (hull x, y, the absolute position only); kicker none (the
+               // paper's mix-scale Kicker is the unscaled original)
+};
+
 struct EpisodeOptions {
   Task task = Task::kWalker;
-  bool mix_scale = false;  // x100 on the lidar/position block of the observation (spec 1.4, 1.6)
+  bool mix_scale = false;  // x100 on the mix_scale_elements entries of the observation
+  MixScaleElements mix_scale_elements = MixScaleElements::kCompanion;
+  // Kicker only, excludes mix_scale: hull and ball positions normalised (hull x / 93.333,
+  // (hull y - 4) / 3, ball likewise; spec 1.6), the paper's "normal" Kicker.
+  bool normalised = false;
   int max_steps = 500;
 };
+
+// The entries [first, last) that mix-scale multiplies by 100 for `task` and `elements` (empty for
+// the paper's Kicker).
+std::pair<int, int> mix_scaled_range(Task task, MixScaleElements elements) noexcept;
+
+// The kicker's normalised observation (spec 1.6): x / kTerrainFull, (y - kNormalisedYOffset) / kNormalisedYRange.
+inline constexpr double kNormalisedYOffset = 4.0;
+inline constexpr double kNormalisedYRange = 3.0;
 
 // Why an episode ended; stored as the single entry of Trace::events.
 enum class Termination : int {
@@ -78,12 +99,20 @@ std::int64_t kicker_ball_cell(const Trace& trace, double* values);
 int bin_index(double v, double lo, double hi, int n) noexcept;
 
 constexpr ParamSpec kWalkerParams[] = {
-    param_bool("mix_scale", "false", "multiply observation entries 14..25 (lidar, hull x, y) by 100 (spec 1.4)"),
+    param_bool("mix_scale", "false", "multiply the mix_scale_elements observation entries by 100 (spec 1.4)"),
+    param_string("mix_scale_elements", "\"companion\"", "companion|paper",
+                 "with mix_scale: companion = entries 14..25 (lidar, hull x, y; the companion code); paper = 24, 25 "
+                 "(hull x, y: the absolute position, the paper's text)"),
     param_int("max_steps", "500", 1, 1000000, "maximum policy steps per episode; trace keeps max_steps/20 rows"),
 };
 constexpr ParamSpec kKickerParams[] = {
-    param_bool("mix_scale", "false",
-               "S = 100 on observation entries 14..29 (lidar, hull pos, ball pos and velocity) (spec 1.6)"),
+    param_bool("mix_scale", "false", "multiply the mix_scale_elements observation entries by 100 (spec 1.6)"),
+    param_string("mix_scale_elements", "\"companion\"", "companion|paper",
+                 "with mix_scale: companion = S = 100 on entries 14..29 (lidar, hull pos, ball pos and velocity; the "
+                 "companion code); paper = none (the paper's mix-scale Kicker is the unscaled original)"),
+    param_bool("normalised", "false",
+               "hull and ball positions normalised: x / 93.333, (y - 4) / 3 (entries 24..27; spec 1.6, the paper's "
+               "normal Kicker); excludes mix_scale"),
     param_int("max_steps", "500", 1, 1000000, "maximum policy steps per episode; trace keeps max_steps/20 rows"),
 };
 constexpr ParamSpec kWalkerGaitParams[] = {

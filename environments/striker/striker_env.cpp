@@ -11,6 +11,9 @@ namespace {
 Options options_from(const Config& config) {
   Options options;
   options.mix_scale = config.get_bool("mix_scale");
+  // The core has already rejected any value outside the declared choices.
+  options.mix_scale_elements =
+      config.get_string("mix_scale_elements") == "paper" ? MixScaleElements::kPaper : MixScaleElements::kCompanion;
   options.puck_hits_target = config.get_bool("puck_hits_target");
   options.max_steps = static_cast<int>(config.get_int("max_steps"));
   return options;

@@ -10,8 +10,11 @@ namespace qd::striker {
 
 inline constexpr ParamSpec kEnvironmentParams[] = {
     param_bool("mix_scale", "false",
-               "multiply the puck position (obs[3], obs[4]) and the wall distances (obs[10..13]) by 100 "
-               "(StrikerAugmentedMixScale)"),
+               "multiply six observation entries (mix_scale_elements) by 100 (StrikerAugmentedMixScale)"),
+    param_string("mix_scale_elements", "\"companion\"", "companion|paper",
+                 "with mix_scale: companion = puck position and wall distances (obs 3, 4, 10-13; the companion "
+                 "code); paper = striker position, puck position and velocity (obs 0, 1, 3, 4, 8, 9; the paper's "
+                 "text)"),
     param_bool("puck_hits_target", "false",
                "false = reference quirk: the target circle blocks only the striker; true: the puck collides "
                "with it too"),

@@ -152,7 +152,7 @@ Pose read_pose(const Scene& scene) {
           normalise_y(p.y)};
 }
 
-void observe(const Scene& scene, const Pose& pose, bool mix_scale, Observation& obs) {
+void observe(const Scene& scene, const Pose& pose, const Options& options, Observation& obs) {
   const b2Vec2& sv = scene.striker->GetLinearVelocity();
   const b2Vec2& pv = scene.puck->GetLinearVelocity();
   obs[0] = static_cast<float>(pose.striker_x);
@@ -170,8 +170,8 @@ void observe(const Scene& scene, const Pose& pose, bool mix_scale, Observation& 
   obs[11] = static_cast<float>(1.0 - pose.puck_x);
   obs[12] = static_cast<float>(1.5 - pose.puck_y);
   obs[13] = static_cast<float>(pose.puck_x + 1.0);
-  if (mix_scale)
-    for (int i : {3, 4, 10, 11, 12, 13}) obs[static_cast<std::size_t>(i)] *= kMixScale;
+  if (options.mix_scale)
+    for (int i : mix_scaled_entries(options.mix_scale_elements)) obs[static_cast<std::size_t>(i)] *= kMixScale;
 }
 
 void record_row(const Pose& pose, Trace& trace) {
@@ -190,6 +190,12 @@ class PolicyController final : public Controller {
 
 }  // namespace
 
+const std::array<int, 6>& mix_scaled_entries(MixScaleElements elements) noexcept {
+  static constexpr std::array<int, 6> kCompanion = {3, 4, 10, 11, 12, 13};
+  static constexpr std::array<int, 6> kPaper = {0, 1, 3, 4, 8, 9};
+  return elements == MixScaleElements::kPaper ? kPaper : kCompanion;
+}
+
 void run_episode(const Options& options, Controller& controller, Trace& trace, std::vector<Observation>* observations) {
   trace.clear();
   trace.main.reset(2);
@@ -202,7 +208,7 @@ void run_episode(const Options& options, Controller& controller, Trace& trace, s
 
   Pose pose = read_pose(scene);
   Observation obs{};
-  observe(scene, pose, options.mix_scale, obs);
+  observe(scene, pose, options, obs);
   if (observations) observations->push_back(obs);
   record_row(pose, trace);
 
@@ -233,7 +239,7 @@ void run_episode(const Options& options, Controller& controller, Trace& trace, s
       trace.message = "non-finite body position after step " + std::to_string(step);
       break;
     }
-    observe(scene, pose, options.mix_scale, obs);
+    observe(scene, pose, options, obs);
     if (observations) observations->push_back(obs);
 
     const b2Vec2& pv = scene.puck->GetLinearVelocity();

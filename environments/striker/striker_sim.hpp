@@ -22,7 +22,7 @@ inline constexpr int kRowEvery = 20;
 // The reference zeroes the action once its step counter (starting at -1) exceeds 100: the policy
 // controls the first 102 calls to step().
 inline constexpr int kPolicyActiveSteps = 102;
-// Mix-scale multiplies obs[3], obs[4] and obs[10..13] by this (spec 1.2).
+// Mix-scale multiplies six observation entries by this (spec 1.2); which six: MixScaleElements.
 inline constexpr float kMixScale = 100.0f;
 
 // World geometry in world units (SCALE 5, 500x500 viewport -> 100x100).
@@ -49,8 +49,19 @@ inline double world_y(double y_n) {
   return 50.0 * y_n + 25.0;
 }
 
+// The observation entries that mix-scale multiplies by kMixScale.
+enum class MixScaleElements {
+  kCompanion,  // obs[3], obs[4], obs[10..13]: puck position and wall distances (the companion code, spec 1.2)
+  kPaper,      // obs[0], obs[1], obs[3], obs[4], obs[8], obs[9]: the paper's text, the exteroceptive inputs
+               // (puck position and velocity) and the striker's absolute position
+};
+
+// The six observation indices multiplied by kMixScale under `elements`, in ascending order.
+const std::array<int, 6>& mix_scaled_entries(MixScaleElements elements) noexcept;
+
 struct Options {
-  bool mix_scale = false;         // scale puck position and wall distances in the observation by 100
+  bool mix_scale = false;  // multiply the mix_scale_elements entries of the observation by 100
+  MixScaleElements mix_scale_elements = MixScaleElements::kCompanion;
   bool puck_hits_target = false;  // false = reference: only the striker collides with the target
   int max_steps = 1000;
 };

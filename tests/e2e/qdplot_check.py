@@ -153,6 +153,28 @@ for stem, name in (("losses-striker-poms", "striker-poms"),):
         mine = [float(r["train_loss"]) for r in ls if r["loop"] == loop]
         check(entry["train_loss"] == mine, f"{stem} loop {loop} train losses")
 
+# Epoch caps: every figure of a capped autoencoder run says so (the fixture caps smoke at 30, the
+# paper's runs at 20 epochs per loop); runs without an autoencoder have none.
+check(cov["algorithms"]["PoMS"]["epoch_caps"] == [30] and cov["algorithms"]["MAPE-Iso"]["epoch_caps"] == [],
+      f"coverage-arm epoch caps {cov['algorithms']['PoMS']['epoch_caps']}")
+for stem, cap in (("map-striker-poms", 20), ("traces-striker-poms", 20), ("latents-striker-poms", 20),
+                  ("losses-striker-poms", 20), ("losses-arm-poms", 30), ("map-bipedal-walker-mape-iso", None)):
+    got = json.loads((fig / f"{stem}.json").read_text())["epoch_cap"]
+    check(got == cap, f"{stem}: epoch cap {got}, expected {cap}")
+by_file = {f["file"]: f for f in manifest["files"]}
+check(by_file["map-striker-poms.png"]["epoch_caps"] == [20] and by_file["coverage-striker.png"]["epoch_caps"] == [20]
+      and by_file["map-bipedal-walker-mape-iso.png"]["epoch_caps"] == [], "manifest epoch caps")
+check(by_file["map-striker-poms.png"]["runs"] == [str(run_dirs("striker-poms")[0])], "manifest runs")
+
+# The Walker's coverage both ways: 12 500 cells and the reference's index space of 50 000.
+walker = json.loads((fig / "coverage-bipedal-walker.json").read_text())["algorithms"]["MAPE-Iso"]
+n = len(rows(run_dirs("bipedal-walker-iso")[0] / "archive.csv"))
+check((walker["cells"], walker["index_space"], walker["final_median_elites"]) == (12500, 50000, n),
+      f"walker coverage: {walker['cells']}, {walker['index_space']}, {walker['final_median_elites']} (elites {n})")
+check(json.loads((fig / "map-bipedal-walker-mape-iso.json").read_text())["index_space"] == 50000, "walker map")
+check(json.loads((fig / "coverage-striker.json").read_text())["algorithms"]["PoMS"]["index_space"] is None,
+      "striker has no second denominator")
+
 if failures:
     print("qdplot check FAILED:\n  " + "\n  ".join(failures))
     sys.exit(1)

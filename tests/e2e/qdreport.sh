@@ -19,4 +19,22 @@ for alg in poms iso ps-uniform; do
 done
 grep -q "figures/coverage-striker.png" "$report"
 [ -s "$out/figures/coverage-striker.png" ] && [ -s "$out/figures/map-striker-poms.png" ]
+grep -q "^\*\*Autoencoder epochs capped at 5 per loop\*\*" "$report"  # the caption of the tables it affects
+grep -q "^| PoMS | 3/3 | .* | \*\*capped at 5\*\* |$" "$report"
+grep -q "^| MAPE-Iso | 3/3 | .* | - |$" "$report"
+
+# No epoch cap by default, and the Walker's coverage both ways: % of its 12 500 cells and of 50 000.
+w=$out-walker
+rm -rf "$w"
+/usr/bin/python3 "$src/share/qdreport" --environments bipedal-walker --algorithms iso --seeds 1 --loops 2 \
+  --set experiment.iterations=1 --set experiment.batch=20 --set experiment.initial_samples=40 -o "$w" \
+  --qdrun "$qdrun" > "$w.log" 2>&1 || { cat "$w.log"; exit 1; }
+grep -q "^- autoencoder epochs: .*no cap" "$w/REPORT.md"
+! grep -qi "capped" "$w/REPORT.md"
+elites=$(($(wc -l < "$w/runs/bipedal-walker-iso/seed-1/archive.csv") - 1))
+read -r p1 p2 < <(/usr/bin/python3 -c "print(f'{100 * $elites / 12500:.2f} {100 * $elites / 50000:.2f}')")
+grep -q "| coverage % of 12500 | coverage % of 50000 |" "$w/REPORT.md"
+grep -q "^| MAPE-Iso | 1/1 | [0-9]* | $elites ($elites-$elites) | $p1 ($p1-$p1) | $p2 ($p2-$p2) |" "$w/REPORT.md" \
+  || { echo "walker: $elites elites, $p1 % and $p2 % not in the table"; grep "^| MAPE-Iso |" "$w/REPORT.md"; exit 1; }
+grep -q "figures/coverage-bipedal-walker.png" "$w/REPORT.md"
 echo "qdreport ok"

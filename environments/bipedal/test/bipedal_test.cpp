@@ -1,6 +1,7 @@
 // Known-answer tests for the walker and kicker environments and their descriptors.
 #include <gtest/gtest.h>
 
+#include <qd/errors.hpp>
 #include <qd/rng.hpp>
 
 #include "bipedal.hpp"
@@ -36,17 +37,22 @@ struct Episode {
   std::vector<float> observations;
 };
 
-Episode run(Task task, const std::vector<double>& theta, bool mix_scale = false, int max_steps = 500) {
+Episode run(const EpisodeOptions& options, const std::vector<double>& theta) {
   qd::bipedal::warm_up_box2d();
-  EpisodeOptions options;
-  options.task = task;
-  options.mix_scale = mix_scale;
-  options.max_steps = max_steps;
+  const Task task = options.task;
   qd::Policy policy(shape_for(task));
   policy.load(theta.data());
   Episode e;
   qd::bipedal::run_episode(options, policy, e.trace, &e.observations);
   return e;
+}
+
+Episode run(Task task, const std::vector<double>& theta, bool mix_scale = false, int max_steps = 500) {
+  EpisodeOptions options;
+  options.task = task;
+  options.mix_scale = mix_scale;
+  options.max_steps = max_steps;
+  return run(options, theta);
 }
 
 Termination why(const qd::Trace& t) {
@@ -219,13 +225,24 @@ TEST(BipedalWalker, EpisodesStayWithinLimits) {
 
 // ---- mix_scale -----------------------------------------------------------------------------------
 
-// A random policy that ignores the scaled inputs, so that both variants follow the same trajectory.
-void check_mix_scale(Task task, int first, int last) {
-  std::vector<double> theta = random_params(task, 11);
+// A random policy that ignores the inputs [first, last], so that a variant that changes only those
+// follows the plain environment's trajectory.
+std::vector<double> policy_ignoring(Task task, int first, int last, std::uint64_t key = 11) {
+  std::vector<double> theta = random_params(task, key);
   for (int r = first; r <= last; ++r)
     for (int c = 0; c < 32; ++c) theta[static_cast<std::size_t>(r) * 32 + static_cast<std::size_t>(c)] = 0.0;
-  const Episode plain = run(task, theta, false);
-  const Episode mixed = run(task, theta, true);
+  return theta;
+}
+
+// With mix_scale and `elements`, exactly the entries [first, last] are 100 x the plain environment's.
+void check_mix_scale(Task task, qd::bipedal::MixScaleElements elements, int first, int last) {
+  const std::vector<double> theta = policy_ignoring(task, first, last);
+  EpisodeOptions options;
+  options.task = task;
+  const Episode plain = run(options, theta);
+  options.mix_scale = true;
+  options.mix_scale_elements = elements;
+  const Episode mixed = run(options, theta);
   ASSERT_GT(plain.trace.steps, 5);
   ASSERT_EQ(plain.observations.size(), mixed.observations.size());
   const int n = qd::bipedal::observation_size(task);
@@ -237,13 +254,70 @@ void check_mix_scale(Task task, int first, int last) {
     ASSERT_EQ(mixed.observations[k], expected) << "step " << k / n << " entry " << i;
   }
   EXPECT_EQ(plain.trace.main.data, mixed.trace.main.data);
+  const auto range = qd::bipedal::mix_scaled_range(task, elements);
+  EXPECT_EQ(range.first, first <= last ? first : range.second);
+  EXPECT_EQ(range.second, first <= last ? last + 1 : range.first);
 }
 
-TEST(BipedalWalker, MixScaleMultipliesLidarAndPosition) {
-  check_mix_scale(Task::kWalker, 14, 25);
+TEST(BipedalWalker, MixScaleCompanionMultipliesLidarAndPosition) {
+  check_mix_scale(Task::kWalker, qd::bipedal::MixScaleElements::kCompanion, 14, 25);
 }
-TEST(BipedalKicker, MixScaleMultipliesLidarPositionsAndBall) {
-  check_mix_scale(Task::kKicker, 14, 29);
+TEST(BipedalWalker, MixScalePaperMultipliesHullPositionOnly) {
+  check_mix_scale(Task::kWalker, qd::bipedal::MixScaleElements::kPaper, 24, 25);
+}
+TEST(BipedalKicker, MixScaleCompanionMultipliesLidarPositionsAndBall) {
+  check_mix_scale(Task::kKicker, qd::bipedal::MixScaleElements::kCompanion, 14, 29);
+}
+TEST(BipedalKicker, MixScalePaperIsTheUnscaledOriginal) {
+  check_mix_scale(Task::kKicker, qd::bipedal::MixScaleElements::kPaper, 1, 0);  // no entry scaled
+}
+
+TEST(BipedalKicker, NormalisedDividesHullAndBallPositionsOnly) {
+  // The first of these random policies that moves the ball, so that its entries vary.
+  EpisodeOptions options;
+  options.task = Task::kKicker;
+  std::vector<double> theta;
+  Episode plain;
+  for (std::uint64_t key = 1; key < 64 && theta.empty(); ++key) {
+    std::vector<double> candidate = policy_ignoring(Task::kKicker, 24, 27, key);
+    plain = run(options, candidate);
+    for (std::size_t k = 26; k < plain.observations.size(); k += 30)
+      if (std::fabs(plain.observations[k] - 46.6667) > 0.5) theta = candidate;
+  }
+  ASSERT_FALSE(theta.empty()) << "no policy among the first 63 moves the ball";
+  options.normalised = true;
+  const Episode norm = run(options, theta);
+  ASSERT_GT(plain.trace.steps, 5);
+  ASSERT_EQ(plain.observations.size(), norm.observations.size());
+  EXPECT_EQ(plain.trace.main.data, norm.trace.main.data);
+  for (std::size_t k = 0; k < plain.observations.size(); ++k) {
+    const int i = static_cast<int>(k % 30u);
+    const double v = plain.observations[k];
+    double expected = v;
+    if (i == 24 || i == 26) expected = v / (14.0 / 30.0 * 200.0);
+    if (i == 25 || i == 27) expected = (v - 4.0) / 3.0;
+    ASSERT_NEAR(norm.observations[k], expected, 1e-6 * std::max(1.0, std::fabs(expected)))
+        << "step " << k / 30 << " entry " << i;
+  }
+  EXPECT_NEAR(norm.observations[24], 44.3333 / 93.3333, 1e-4);  // hull start x = 44.333
+  EXPECT_NEAR(norm.observations[26], 0.5, 1e-6);                // ball start x = 46.667
+}
+
+TEST(BipedalEnvironment, ObservationOptions) {
+  qd::Config walker = qd::defaults_of(qd::bipedal::kWalkerParams, "environment");
+  EXPECT_EQ(qd::bipedal::WalkerEnvironment(walker, {}).options().mix_scale_elements,
+            qd::bipedal::MixScaleElements::kCompanion);
+  walker.set_string("mix_scale_elements", "paper");
+  EXPECT_EQ(qd::bipedal::WalkerEnvironment(walker, {}).options().mix_scale_elements,
+            qd::bipedal::MixScaleElements::kPaper);
+  EXPECT_FALSE(qd::bipedal::WalkerEnvironment(walker, {}).options().normalised);
+
+  qd::Config kicker = qd::defaults_of(qd::bipedal::kKickerParams, "environment");
+  EXPECT_FALSE(qd::bipedal::KickerEnvironment(kicker, {}).options().normalised);
+  kicker.set_bool("normalised", true);
+  EXPECT_TRUE(qd::bipedal::KickerEnvironment(kicker, {}).options().normalised);
+  kicker.set_bool("mix_scale", true);
+  EXPECT_THROW(qd::bipedal::KickerEnvironment(kicker, {}), qd::ConfigError);
 }
 
 // ---- Descriptors on synthetic traces -------------------------------------------------------------
@@ -372,8 +446,8 @@ void expect_same(const qd::Trace& a, const qd::Trace& b) {
 }
 
 void check_determinism(Task task) {
-  qd::Config cfg =
-      qd::defaults_of(task == Task::kWalker ? qd::bipedal::kWalkerParams : qd::bipedal::kKickerParams, "environment");
+  const qd::Config cfg = task == Task::kWalker ? qd::defaults_of(qd::bipedal::kWalkerParams, "environment")
+                                               : qd::defaults_of(qd::bipedal::kKickerParams, "environment");
   const qd::bipedal::BipedalEnvironment env(task, cfg);
   const qd::PolicyShape shape = shape_for(task);
   constexpr int kN = 4;

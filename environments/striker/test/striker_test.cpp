@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -290,12 +291,14 @@ TEST(StrikerEpisode, RowsAreTruncatedAtStep960) {
   EXPECT_EQ(trace.events, std::vector<int>{2});
 }
 
-TEST(StrikerEpisode, MixScaleScalesPuckPositionAndWallDistancesOnly) {
-  // An observation-independent policy (all weights zero) so both runs follow the same physics;
-  // it turns, hits the puck and the puck touches walls, so every observation entry varies.
+// Runs an observation-independent policy (all weights zero) with and without mix-scale, so both
+// runs follow the same physics; it turns, hits the puck and the puck touches walls, so every
+// observation entry varies. Checks that exactly the `scaled` entries are multiplied by 100.
+void check_mix_scale(qd::striker::MixScaleElements elements, const std::array<bool, 14>& scaled) {
   const std::vector<double> theta = constant_policy(0.0, 0.45, 0.5);
   Options mix;
   mix.mix_scale = true;
+  mix.mix_scale_elements = elements;
   std::vector<Observation> plain_obs, mix_obs;
   const qd::Trace plain_trace = run(theta, {}, &plain_obs);
   const qd::Trace mix_trace = run(theta, mix, &mix_obs);
@@ -303,16 +306,50 @@ TEST(StrikerEpisode, MixScaleScalesPuckPositionAndWallDistancesOnly) {
   EXPECT_GE(plain_trace.events.size(), 2u);
   ASSERT_EQ(plain_obs.size(), mix_obs.size());
   ASSERT_GT(plain_obs.size(), 500u);
-  const bool scaled[14] = {false, false, false, true, true, false, false, false, false, false, true, true, true, true};
   for (std::size_t k = 0; k < plain_obs.size(); ++k)
     for (std::size_t i = 0; i < 14; ++i) {
       const float expected = scaled[i] ? 100.0f * plain_obs[k][i] : plain_obs[k][i];
       ASSERT_EQ(mix_obs[k][i], expected) << "step " << k << " entry " << i;
     }
-  EXPECT_EQ(mix_obs[0][10], 50.0f);
-  EXPECT_EQ(mix_obs[0][12], 150.0f);
+  std::array<bool, 14> listed{};
+  for (int i : qd::striker::mix_scaled_entries(elements)) listed[static_cast<std::size_t>(i)] = true;
+  EXPECT_EQ(listed, scaled);
   // The puck really moved, so the scaled entries were exercised away from their start values.
   EXPECT_GT(std::fabs(plain_obs.back()[4]), 0.5f);
+  EXPECT_TRUE(std::any_of(plain_obs.begin(), plain_obs.end(),
+                          [](const Observation& o) { return std::fabs(o[8]) > 1.0f && std::fabs(o[9]) > 1.0f; }));
+}
+
+TEST(StrikerEpisode, MixScaleCompanionScalesPuckPositionAndWallDistancesOnly) {
+  check_mix_scale(qd::striker::MixScaleElements::kCompanion,
+                  {false, false, false, true, true, false, false, false, false, false, true, true, true, true});
+  Options mix;
+  mix.mix_scale = true;
+  std::vector<Observation> obs;
+  run(constant_policy(0.0, 0.45, 0.5), mix, &obs);
+  EXPECT_EQ(obs[0][10], 50.0f);
+  EXPECT_EQ(obs[0][12], 150.0f);
+}
+
+TEST(StrikerEpisode, MixScalePaperScalesStrikerPositionAndPuckPositionAndVelocityOnly) {
+  check_mix_scale(qd::striker::MixScaleElements::kPaper,
+                  {true, true, false, true, true, false, false, false, true, true, false, false, false, false});
+  Options mix;
+  mix.mix_scale = true;
+  mix.mix_scale_elements = qd::striker::MixScaleElements::kPaper;
+  std::vector<Observation> obs;
+  run(constant_policy(0.0, 0.45, 0.5), mix, &obs);
+  EXPECT_FLOAT_EQ(obs[0][1], -30.0f);  // striker start y_n = -0.3
+  EXPECT_EQ(obs[0][10], 0.5f);         // wall distances unscaled
+}
+
+TEST(StrikerEnvironment, MixScaleElementsOption) {
+  qd::Config config = qd::defaults_of(qd::striker::kEnvironmentParams, "environment");
+  EXPECT_EQ(StrikerEnvironment(config, qd::BuildContext{}).options().mix_scale_elements,
+            qd::striker::MixScaleElements::kCompanion);
+  config.set_string("mix_scale_elements", "paper");
+  EXPECT_EQ(StrikerEnvironment(config, qd::BuildContext{}).options().mix_scale_elements,
+            qd::striker::MixScaleElements::kPaper);
 }
 
 TEST(StrikerEpisode, PuckHitsTargetOption) {
