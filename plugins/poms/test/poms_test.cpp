@@ -13,6 +13,8 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/LU>
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -208,6 +210,59 @@ TEST(PomsTest, LatentCovarianceIsSigmaJtJForNonLinearDecoder) {
     EXPECT_GT(max_standard_errors(out, 1, RowVector(z0.row(0)), iso), 5.0);
   }
   EXPECT_GT(model.vjp_calls, 0);  // the latent step went through decoder_vjp
+}
+
+// A linear decoder θ = zA with a square, non-symmetric A (P = LD) that relies on the core's
+// default decoder_vjp: the latent step must be Jᵀξ, so its covariance is σJᵀJ, not σJJᵀ (the two
+// differ for this A, so a transposed Jacobian fails here).
+class SquareLinear final : public qd::Representation {
+ public:
+  explicit SquareLinear(Matrix a) : a_(std::move(a)) {}
+  int latent_size() const noexcept override { return static_cast<int>(a_.rows()); }
+  qd::FitReport fit(const qd::Dataset&, const qd::FitContext&) override { return {}; }
+  void encode(const Matrix& theta, Matrix& z) const override { z = theta * a_.inverse(); }
+  void decode(const Matrix& z, Matrix& theta) const override { theta = z * a_; }
+  // ∂θ/∂z: θ_j = Σ_k z_k A_kj, so J = Aᵀ (P × LD).
+  void decoder_jacobians(const Matrix& z, std::vector<Matrix>& j) const override {
+    j.assign(static_cast<std::size_t>(z.rows()), a_.transpose());
+  }
+  void save(std::ostream&) const override {}
+  void load(std::istream&) override {}
+
+ private:
+  Matrix a_;
+};
+
+TEST(PomsTest, LatentStepUsesTheTransposedJacobianOfASquareDecoder) {
+  Matrix a(3, 3);
+  a << 1.0, 2.0, 0.0, 0.0, 1.0, 0.0, 0.5, 0.0, 3.0;
+  SquareLinear model(a);
+  const Eigen::MatrixXd j = a.transpose();
+  const Eigen::MatrixXd jtj = j.transpose() * j, jjt = j * j.transpose();
+  ASSERT_GT((jtj - jjt).cwiseAbs().maxCoeff(), 1.0);
+  qd::testing::Elites archive = archive_with_mean(3, 1.0, 1.0);
+  const std::size_t n = 20001;
+  const Matrix parent = gaussian(1, 3, 42);
+  Matrix z0;
+  model.encode(parent, z0);
+  const double sigma = 0.2;
+  PomsMutator mutator(sigma, SigmaMeaning::kVariance, ThresholdMode::kArchiveMean);
+  begin(mutator, archive, model);
+  const qd::Offspring out = run(mutator, parents_of(parent.replicate(n, 1), std::vector<double>(n, 0.0)), model, 1,
+                                0, archive);
+  EXPECT_LT(max_standard_errors(out, 1, RowVector(z0.row(0)), sigma * jtj), 5.0);
+  EXPECT_GT(max_standard_errors(out, 1, RowVector(z0.row(0)), sigma * jjt), 5.0);
+}
+
+// The reference threshold is the mean of the stored errors at loop start (not the median, not
+// the current model's errors): elites with errors 0.1, 0.2 and 0.9 give 0.4.
+TEST(PomsTest, ArchiveMeanThresholdIsTheMeanOfStoredErrors) {
+  qd::testing::Elites archive(10, 2, 1);
+  archive.add(0, {0, 0}, 0.1).add(4, {0, 0}, 0.2).add(9, {0, 0}, 0.9);
+  EluModel model(2, 3, 2);
+  PomsMutator mutator(0.1, SigmaMeaning::kVariance, ThresholdMode::kArchiveMean);
+  begin(mutator, archive, model);
+  EXPECT_DOUBLE_EQ(mutator.threshold(), 0.4);
 }
 
 #ifdef QD_POMS_TEST_WITH_PCA
