@@ -37,7 +37,7 @@ for m in "${mutations[@]}"; do
   if ! cmake --build "$build" > /tmp/qd-mutation-build.log 2>&1; then
     echo "caught at build time: $name"; caught=$((caught + 1)); restore; continue
   fi
-  failed=$(cd "$build" && ctest -R "$tests" --timeout 300 2>&1 | sed -n 's/^ *[0-9]* - \(.*\) (Failed)$/\1/p' | tr '\n' ' ')
+  failed=$(cd "$build" && ctest -R "$tests" --timeout 300 2>&1 | sed -n 's/^[[:space:]]*[0-9]* - \(.*\) (Failed)$/\1/p' | tr '\n' ' ')
   if [ -n "$failed" ]; then
     echo "caught: $name -- failing: $failed"; caught=$((caught + 1))
   else
