@@ -74,8 +74,9 @@ struct Trace {
   }
 };
 
-// The behaviour grid a descriptor maps traces into. Cell index = row-major over `shape`
-// unless the descriptor documents otherwise (the walker's reference gait grid does).
+// The behaviour grid a descriptor maps traces into. A cell index is row-major over `shape` (the
+// last dimension varies fastest), so cells == the product of `shape`; every run writes this to
+// grid.toml, from which plots draw the archive without knowing the descriptor.
 struct GridSpec {
   std::vector<std::int64_t> shape;   // bins per dimension
   std::vector<std::string> names;    // one per dimension, for CSV headers and plots

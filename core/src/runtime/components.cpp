@@ -2,7 +2,30 @@
 
 #include <qd/errors.hpp>
 
+#include <sstream>
+
 namespace qd::runtime {
+
+std::string grid_toml(const GridSpec& g) {
+  std::string out = "# The behaviour grid: a cell index is row-major over shape (the last dimension fastest).\n";
+  out += "cells = " + std::to_string(g.cells) + "\nshape = [";
+  for (std::size_t d = 0; d < g.shape.size(); ++d) out += (d ? ", " : "") + std::to_string(g.shape[d]);
+  out += "]\nnames = [";
+  for (std::size_t d = 0; d < g.names.size(); ++d) out += (d ? ", " : "") + toml_string(g.names[d]);
+  auto numbers = [&](const std::vector<double>& v) {
+    std::string t = "[";
+    for (std::size_t d = 0; d < v.size(); ++d) {
+      if (d) t += ", ";
+      std::ostringstream o;
+      o.precision(17);
+      o << v[d];
+      t += o.str();
+    }
+    return t + "]";
+  };
+  out += "]\nlower = " + numbers(g.lower) + "\nupper = " + numbers(g.upper) + "\n";
+  return out;
+}
 
 std::string toml_string(const std::string& s) {
   std::string out = "\"";
@@ -18,6 +41,22 @@ std::string toml_string(const std::string& s) {
 }
 
 namespace {
+void check_grid(const GridSpec& g, const std::string& who) {
+  const std::size_t dims = g.shape.size();
+  if (g.cells <= 0 || dims == 0) throw PluginError(who + " declares an empty grid");
+  if (g.names.size() != dims || g.lower.size() != dims || g.upper.size() != dims)
+    throw PluginError(who + " declares a grid of " + std::to_string(dims) +
+                      " dimensions with another number of names or bounds");
+  std::int64_t product = 1;
+  for (std::int64_t bins : g.shape) {
+    if (bins <= 0 || product > g.cells) throw PluginError(who + " declares a grid dimension without bins");
+    product *= bins;
+  }
+  if (product != g.cells)
+    throw PluginError(who + " declares " + std::to_string(g.cells) + " cells, but its shape has " +
+                      std::to_string(product));
+}
+
 // Runs a factory; a ConfigError from it is reported at the key's place in the experiment file.
 template <class T>
 Owned<T> create(const Registry& registry, const ComponentConfig& cc, const BuildContext& ctx) {
@@ -48,8 +87,7 @@ Components build_components(Experiment& ex, const Registry& registry) {
   }
   c.descriptor = create<Descriptor>(registry, ex.descriptor, ctx);
   c.grid = c.descriptor->grid();
-  if (c.grid.cells <= 0 || c.grid.shape.empty())
-    throw PluginError("descriptor '" + ex.descriptor.type + "' declares an empty grid");
+  check_grid(c.grid, "descriptor '" + ex.descriptor.type + "' (" + ex.descriptor.entry->plugin->path + ")");
 
   c.representation = create<Representation>(registry, ex.representation, ctx);
   const int latent = c.representation->latent_size();

@@ -35,6 +35,9 @@ struct Components {
 // environment's default descriptor into `ex` when the experiment names none.
 Components build_components(Experiment& ex, const Registry& registry);
 
+// grid.toml: the grid's cells, shape, names and bounds.
+std::string grid_toml(const GridSpec& grid);
+
 // `s` quoted as a TOML basic string.
 std::string toml_string(const std::string& s);
 

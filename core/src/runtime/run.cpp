@@ -84,6 +84,7 @@ void Run::create_directory() {
       "loop,iteration,evaluations,elites,coverage,mixing_ratio,added,replaced,invalid,wall_seconds,train_seconds";
   for (const auto& n : c_.metric_names) header += "," + n;
   dir_.create(ex_.resolved_toml, header);
+  dir_.write("grid.toml", grid_toml(c_.grid));
   write_provenance();
   next_loop_ = 0;
 }
@@ -95,6 +96,7 @@ void Run::open_for_resume() {
   dir_.check_writable();
   load_checkpoint(true);
   dir_.write_config(ex_.resolved_toml);
+  dir_.write("grid.toml", grid_toml(c_.grid));
   dir_.set_status("running");
   write_provenance();
 }

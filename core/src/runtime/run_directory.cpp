@@ -39,6 +39,10 @@ void RunDirectory::write_config(const std::string& config) const {
   write_file_atomic(dir_ / "config.toml", config);
 }
 
+void RunDirectory::write(const std::string& name, const std::string& text) const {
+  write_file_atomic(dir_ / name, text);
+}
+
 void RunDirectory::write_provenance(int first_loop, const std::string& text) const {
   const std::string name =
       first_loop == 0 ? "provenance.toml" : "provenance-resume-loop-" + std::to_string(first_loop) + ".toml";

@@ -1,5 +1,6 @@
 // The run directory <output>/<name>/seed-<seed>: the files a run writes besides its checkpoint.
 //   config.toml        the resolved configuration
+//   grid.toml          the descriptor's grid (how a cell index decomposes), for plots
 //   provenance*.toml   who, where and with what it ran (one file per session)
 //   status             running | complete | stopped ... | failed: ...
 //   metrics.csv        one row per iteration; training.csv one row per loop (appended logs)
@@ -28,6 +29,8 @@ class RunDirectory {
   void check_writable() const;
 
   void write_config(const std::string& config) const;
+  // Replaces the file `name` in the run directory atomically.
+  void write(const std::string& name, const std::string& text) const;
   // provenance.toml for the session that starts at loop 0, provenance-resume-loop-L.toml else.
   void write_provenance(int first_loop, const std::string& text) const;
   void set_status(const std::string& status) const;
