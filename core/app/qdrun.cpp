@@ -1,7 +1,10 @@
 // qdrun: runs a Quality-Diversity experiment described by a TOML file.
 //
-// Exit codes: 0 success, 2 bad input (file, TOML, configuration, plugins, output directory),
-// 1 internal failure.
+// Exit codes: 0 success; 1 internal failure (a bug); 2 bad input (file, TOML, configuration,
+// plugins, run directory); 3 a worker process or MPI rank died or hung; 4 a system or I/O error
+// (disk full, no memory, no process or thread could be created); 130 / 143 stopped by SIGINT /
+// SIGTERM.
+#include "interrupt.hpp"
 #include "progress.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
@@ -27,7 +30,7 @@ using namespace qd::runtime;
 
 namespace {
 
-constexpr int kExitOk = 0, kExitFailure = 1, kExitBadInput = 2, kExitWorkerFailure = 3;
+constexpr int kExitOk = 0, kExitFailure = 1, kExitBadInput = 2, kExitWorkerFailure = 3, kExitSystem = 4;
 
 struct Cli {
   std::vector<std::string> experiments;
@@ -35,7 +38,7 @@ struct Cli {
   std::vector<std::string> plugin_paths;
   std::string output, resume, describe, replay, svg, backend;
   long long cell = -1;
-  long long seed = -1;
+  std::string seed;  // empty: from the experiment
   int workers = 0;
   int stop_after_loop = -1;
   bool quiet = false, list = false, version = false;
@@ -111,12 +114,6 @@ int describe(const Registry& reg, const std::string& name) {
   return kExitOk;
 }
 
-// Keys that may change when a run is resumed: budget and output only, never the algorithm.
-bool resumable_override(const std::string& assignment) {
-  const std::string key = assignment.substr(0, assignment.find('='));
-  return key == "experiment.loops" || key.rfind("evaluation.", 0) == 0 || key == "output.snapshot_every";
-}
-
 int run_one(const Cli& cli, const std::string& command_line) {
   Document doc;
   RunOptions opt;
@@ -124,30 +121,33 @@ int run_one(const Cli& cli, const std::string& command_line) {
     const fs::path cfg = fs::path(cli.resume) / "config.toml";
     if (!fs::exists(cfg)) throw InputError(cli.resume + ": not a run directory (no config.toml)");
     doc = Document::read(cfg);
-    for (const auto& s : cli.sets) {
-      if (!resumable_override(s))
-        throw InputError("--set " + s +
-                         ": only experiment.loops, evaluation.* and output.snapshot_every may change when resuming");
-      doc.apply_override(s);
-    }
-    if (cli.seed >= 0 || !cli.output.empty()) throw InputError("--seed and --output cannot be combined with --resume");
+    for (const auto& s : cli.sets) doc.apply_override(s);  // checked against the checkpoint's config
+    if (!cli.seed.empty() || !cli.output.empty())
+      throw InputError("--seed and --output cannot be combined with --resume");
+    if (!cli.backend.empty())
+      doc.apply_override("evaluation.backend=\"" + cli.backend + "\"", "--backend " + cli.backend);
     opt.directory = cli.resume;
   } else {
     doc = Document::read(cli.experiments.front());
     for (const auto& s : cli.sets) doc.apply_override(s);
-    if (cli.seed >= 0) doc.apply_override("experiment.seed=" + std::to_string(cli.seed));
+    // Through the experiment's schema, as any key: the same ranges, values and messages.
+    if (!cli.seed.empty()) doc.apply_override("experiment.seed=" + cli.seed, "--seed " + cli.seed);
+    if (!cli.backend.empty())
+      doc.apply_override("evaluation.backend=\"" + cli.backend + "\"", "--backend " + cli.backend);
     if (!cli.output.empty()) doc.apply_override("output.dir=\"" + cli.output + "\"");
   }
   Registry reg;
   setup_registry(reg, cli, doc.plugin_paths());
   Experiment ex = resolve(doc, reg);
   opt.workers = cli.workers;
-  opt.backend = cli.backend;
   opt.stop_after_loop = cli.stop_after_loop;
   opt.command_line = command_line;
   const bool terminal = ::isatty(STDERR_FILENO) != 0;
   app::ProgressPrinter printer(cli.quiet, terminal, ex.settings.name + "/seed-" + std::to_string(ex.settings.seed));
-  opt.on_progress = [&](const Progress& p) { printer(p); };
+  opt.on_progress = [&](const Progress& p) {
+    app::note_position(p.loop, p.iteration);
+    printer(p);
+  };
   if (mpi_rank() > 0) {
     // An MPI worker rank: same experiment, no files, no output; it serves rank 0 until stopped.
     opt.on_progress = nullptr;
@@ -160,6 +160,8 @@ int run_one(const Cli& cli, const std::string& command_line) {
     run.open_for_resume();
   else
     run.create_directory();
+  // Under mpirun, mpirun owns the signals: it ends every rank, and the MPI backend reports it.
+  if (mpi_size() <= 1) app::stop_on_signals(run.directory(), terminal && !cli.quiet);
   try {
     const bool finished = run.run();
     printer.finish();
@@ -168,17 +170,18 @@ int run_one(const Cli& cli, const std::string& command_line) {
                    run.directory().c_str(), run.archive().size(), run.archive().coverage());
   } catch (const std::exception& e) {
     printer.finish();
-    std::error_code ec;
-    if (fs::exists(run.directory(), ec)) {
-      std::FILE* f = std::fopen((run.directory() / "status").c_str(), "w");
-      if (f) {
-        std::fprintf(f, "failed: %s (the last checkpoint is intact; fix the cause and --resume)\n", e.what());
-        std::fclose(f);
-      }
+    // Honest about what is left: a checkpoint to resume from, or nothing worth keeping.
+    const std::string dir = run.directory().string();
+    const std::string next = CheckpointStore::exists(run.directory())
+                                 ? "the last checkpoint is intact: fix the cause and qdrun --resume " + dir
+                                 : "no checkpoint was written yet: fix the cause, delete " + dir + " and start again";
+    std::FILE* f = std::fopen((run.directory() / "status").c_str(), "w");
+    if (f) {
+      std::fprintf(f, "failed: %s (%s)\n", e.what(), next.c_str());
+      std::fclose(f);
     }
-    if (dynamic_cast<const WorkerFailure*>(&e))
-      throw WorkerFailure(std::string(e.what()) + "; the last checkpoint is intact: qdrun --resume " +
-                          run.directory().string());
+    if (dynamic_cast<const WorkerFailure*>(&e)) throw WorkerFailure(std::string(e.what()) + "; " + next);
+    if (dynamic_cast<const SystemError*>(&e)) throw SystemError(std::string(e.what()) + "; " + next);
     throw;
   }
   return kExitOk;
@@ -247,7 +250,7 @@ bool sweep_requested(const Cli& cli) {
 }
 
 int sweep(const Cli& cli) {
-  if (!cli.resume.empty() || cli.seed >= 0 || cli.stop_after_loop >= 0)
+  if (!cli.resume.empty() || !cli.seed.empty() || cli.stop_after_loop >= 0)
     throw InputError("a sweep (several files, --seeds or --jobs) takes no --resume, --seed or --stop-after-loop");
   app::SweepOptions o;
   o.experiments = cli.experiments;
@@ -357,6 +360,12 @@ int qdrun_main(int argc, char** argv) {
     // Under MPI a hung or dead rank would never join MPI_Finalize: take the job down.
     if (mpi_size() > 1) mpi_abort(kExitWorkerFailure);
     return kExitWorkerFailure;
+  } catch (const SystemError& e) {
+    std::fprintf(stderr, "qdrun: system error: %s\n", e.what());
+    return kExitSystem;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "qdrun: system error: out of memory\n");
+    return kExitSystem;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "qdrun: internal failure: %s\n", e.what());
     return kExitFailure;

@@ -1,9 +1,11 @@
 #include "sweep.hpp"
 
+#include "runtime/checkpoint.hpp"
 #include "runtime/components.hpp"
 #include "runtime/evaluator.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/run.hpp"
+#include "runtime/run_directory.hpp"
 
 #include <qd/errors.hpp>
 
@@ -184,19 +186,24 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
   for (const auto& s : overrides) p.child.insert(p.child.end(), {"--set", s});
 
   std::error_code ec;
+  const std::string holder = runtime::RunDirectory::holder(p.dir);
+  if (!holder.empty()) throw InputError(p.dir.string() + " is in use by qdrun " + holder + "; wait for it or stop it");
   const bool has_config = fs::exists(p.dir / "config.toml", ec);
-  const bool has_checkpoint = fs::exists(p.dir / "checkpoint.bin", ec);
-  if (!has_config && !has_checkpoint) {
+  const bool has_checkpoint = runtime::CheckpointStore::exists(p.dir);
+  const bool has_archive = fs::exists(p.dir / "archive.csv", ec);
+  const std::string status = read_text(p.dir / "status");
+  if (!has_config && !has_checkpoint && !has_archive) {
     p.action = Action::kFresh;
     p.why = "fresh";
     return p;
   }
-  if (!has_checkpoint) {
-    p.action = Action::kRestart;
-    p.why = "restart: it died before its first checkpoint";
-    return p;
-  }
-  // The directory holds a run: it must be this run (only the budget and output keys may differ).
+  if (!has_checkpoint && (has_archive || status.rfind("complete", 0) == 0 || !has_config))
+    // Anything without a checkpoint but a run that died in loop 0 (a finished run copied without
+    // its *.bin files, a directory of another kind) holds results a restart would destroy.
+    throw InputError(p.dir.string() +
+                     " holds results but no checkpoint (copied without its *.bin files?); "
+                     "the sweep will not touch it: move it away or choose another --output");
+  // The directory holds this run (only the budget and output keys may differ), or the start of it.
   Document old = Document::read(p.dir / "config.toml");
   const Registry& old_reg = regs.get(old.plugin_paths());
   const int old_loops = runtime::resolve(old, old_reg).settings.loops;
@@ -209,8 +216,12 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
     throw InputError(p.dir.string() + " holds a run of another configuration than " + file + " (" +
                      first_difference(then.resolved_toml, now.resolved_toml) +
                      "); move it away or choose another --output");
-  const std::string status = read_text(p.dir / "status");
-  const bool complete = status.rfind("complete", 0) == 0 && fs::exists(p.dir / "archive.csv", ec);
+  if (!has_checkpoint) {
+    p.action = Action::kRestart;
+    p.why = "restart: it died before its first checkpoint";
+    return p;
+  }
+  const bool complete = status.rfind("complete", 0) == 0 && has_archive;
   p.child = {"--resume", p.dir.string(), "--set", "experiment.loops=" + std::to_string(now.settings.loops)};
   if (complete && old_loops >= now.settings.loops) {
     p.action = Action::kSkip;
@@ -224,6 +235,18 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
     p.why = "resume: was '" + s + "'";
   }
   return p;
+}
+
+// Removes what a run that died in loop 0 wrote, and nothing else (a user's notes stay).
+void remove_unfinished_start(const fs::path& dir) {
+  std::error_code ec;
+  for (const char* name : {"config.toml", "provenance.toml", "status", "grid.toml", "metrics.csv", "training.csv",
+                           "losses.csv", "pca.csv", "dataset.bin", "checkpoint.bin.tmp"})
+    fs::remove(dir / name, ec);
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind("archive-state-", 0) == 0) fs::remove(e.path(), ec);
+  }
 }
 
 double now_seconds() {
@@ -389,7 +412,7 @@ int run_sweep(const SweepOptions& o,
       const std::size_t i = pending[next++];
       PlannedRun& r = runs[i];
       std::error_code ec;
-      if (r.action == Action::kRestart) fs::remove_all(r.dir, ec);
+      if (r.action == Action::kRestart) remove_unfinished_start(r.dir);
       fs::create_directories(r.dir, ec);
       if (ec) throw InputError("cannot create the run directory " + r.dir.string() + ": " + ec.message());
       std::vector<std::string> args = r.child;

@@ -13,6 +13,8 @@ ConfigError::ConfigError(std::string key, const std::string& what) : InputError(
 ConfigError::~ConfigError() = default;
 PluginError::PluginError(const std::string& what) : InputError(what) {}
 PluginError::~PluginError() = default;
+SystemError::SystemError(const std::string& what) : Error(what) {}
+SystemError::~SystemError() = default;
 StateError::StateError(const std::string& what) : Error(what) {}
 StateError::~StateError() = default;
 

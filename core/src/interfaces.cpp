@@ -49,6 +49,10 @@ double ArchiveView::mean_recn_error() const {
   return n == 0 ? 0.0 : sum / static_cast<double>(n);
 }
 
+std::vector<std::string> Representation::log_files() const {
+  return {};
+}
+
 void Mutator::begin_loop(const LoopContext&) {}
 void Mutator::feedback(const Feedback&) {}
 void Mutator::save(std::ostream&) const {}

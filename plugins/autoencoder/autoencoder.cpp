@@ -175,12 +175,14 @@ class Network final : public Model {
     const bool has_test = x_test.rows() > 0;
 
     std::ofstream log;
+    std::filesystem::path log_path;
     if (!ctx.run_dir.empty()) {
-      const std::filesystem::path path = std::filesystem::path(ctx.run_dir) / "losses.csv";
-      const bool fresh = !std::filesystem::exists(path);
-      log.open(path, std::ios::app);
-      if (!log) throw Error("autoencoder: cannot open " + path.string());
-      if (fresh) log << "loop,epoch,train_loss,test_loss\n";
+      log_path = std::filesystem::path(ctx.run_dir) / kLossesFile;
+      const bool fresh = !std::filesystem::exists(log_path);
+      log.open(log_path, std::ios::app);
+      if (!log) throw SystemError("autoencoder: cannot open " + log_path.string());
+      if (fresh && !(log << "loop,epoch,train_loss,test_loss\n" << std::flush))
+        throw SystemError("autoencoder: cannot write " + log_path.string());
     }
 
     const Eigen::Index n_train = x_train.rows();
@@ -208,12 +210,13 @@ class Network final : public Model {
         report.test_loss = mean_sse(x_test, threads);
         test_losses.push_back(report.test_loss);
       }
-      if (log) {
+      if (log.is_open()) {
         if (has_test)
           std::snprintf(line, sizeof line, "%d,%d,%.9g,%.9g\n", ctx.loop, epoch, report.train_loss, report.test_loss);
         else
           std::snprintf(line, sizeof line, "%d,%d,%.9g,\n", ctx.loop, epoch, report.train_loss);
-        log << line;
+        // A full disk must fail the run, not drop rows: every row is flushed and checked.
+        if (!(log << line << std::flush)) throw SystemError("autoencoder: cannot write " + log_path.string());
       }
       if (has_test && should_stop(test_losses, epoch, hyper_.early_stop_window, hyper_.early_stop_slope)) {
         report.stopped_early = true;

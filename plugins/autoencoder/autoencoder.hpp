@@ -19,6 +19,9 @@
 
 namespace qd::autoencoder {
 
+// Per-epoch losses, appended in the run directory.
+inline constexpr const char* kLossesFile = "losses.csv";
+
 inline constexpr ParamSpec kParams[] = {
     param_int("hidden", "100", 1, 1e6, "units of the hidden ELU layer of encoder and decoder (HD)"),
     param_int("latent", "50", 1, 1e6, "latent size LD (must not exceed the policy's parameter count)"),
@@ -117,6 +120,7 @@ class Autoencoder final : public Representation {
   void reconstruction_errors(const Matrix& theta, Vector& errors) const override {
     model_->reconstruction_errors(theta, errors);
   }
+  std::vector<std::string> log_files() const override { return {kLossesFile}; }
   void save(std::ostream& out) const override { model_->save(out); }
   void load(std::istream& in) override { model_->load(in); }
 

@@ -171,11 +171,11 @@ FitReport PcaRepresentation::fit(const Dataset& data, const FitContext& ctx) {
     std::error_code ec;
     const bool fresh = !std::filesystem::exists(path, ec) || std::filesystem::file_size(path, ec) == 0;
     std::ofstream out(path, std::ios::app);
-    if (!out) throw Error("pca: cannot write " + path.string());
+    if (!out) throw SystemError("pca: cannot write " + path.string());
     out.precision(std::numeric_limits<double>::max_digits10);
     if (fresh) out << "loop,component,explained_variance_ratio\n";
     for (int k = 0; k < latent_; ++k) out << ctx.loop << ',' << k << ',' << explained_variance_ratio_(k) << '\n';
-    if (!out) throw Error("pca: error writing " + path.string());
+    if (!out) throw SystemError("pca: error writing " + path.string());
   }
   return report;
 }

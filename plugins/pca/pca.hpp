@@ -26,6 +26,7 @@ class PcaRepresentation final : public Representation {
   void decoder_jacobians(const Matrix& z, std::vector<Matrix>& jacobians) const override;
   void decoder_vjp(const Matrix& z, const Matrix& v, Matrix& out) const override;
 
+  std::vector<std::string> log_files() const override { return {"pca.csv"}; }
   void save(std::ostream& out) const override;
   void load(std::istream& in) override;
 

@@ -1,6 +1,6 @@
 // Error types and the aborting invariant check.
 //
-// Three kinds of failure, three mechanisms (see README "Errors"):
+// Three kinds of failure, three mechanisms (docs/user-guide.md, "Exit codes"):
 //  * setup-time problems the user can fix (bad TOML, unknown component, broken plugin):
 //    exceptions derived from qd::Error, caught once by qdrun and reported with exit code 2;
 //  * expected per-evaluation outcomes (a diverged simulation, a NaN action): status values
@@ -45,6 +45,14 @@ class QD_EXPORT PluginError : public InputError {
  public:
   explicit PluginError(const std::string& what);
   ~PluginError() override;
+};
+
+// The system refused: a write failed (disk full, no permission), memory, a process or a thread
+// could not be created. Not the user's input and not a bug. qdrun exits with code 4.
+class QD_EXPORT SystemError : public Error {
+ public:
+  explicit SystemError(const std::string& what);
+  ~SystemError() override;
 };
 
 // A checkpoint or state blob could not be read back.

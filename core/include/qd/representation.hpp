@@ -56,6 +56,11 @@ class QD_EXPORT Representation : public Component {
   // errors[i] = ‖θ_i − Dec(Enc(θ_i))‖₂.
   virtual void reconstruction_errors(const Matrix& theta, Vector& errors) const;
 
+  // Files this representation appends to in FitContext::run_dir (e.g. per-epoch losses). The core
+  // records their sizes at every checkpoint and cuts them back when a run resumes; every write to
+  // them must be checked (a failed write throws), so a log is complete or the run fails.
+  virtual std::vector<std::string> log_files() const;
+
   virtual void save(std::ostream& out) const = 0;
   virtual void load(std::istream& in) = 0;
 };

@@ -5,6 +5,8 @@
 #include <qd/errors.hpp>
 #include <qd/state_io.hpp>
 
+#include <boost/crc.hpp>
+
 #include <fcntl.h>
 #include <pthread.h>
 #include <unistd.h>
@@ -19,7 +21,7 @@ namespace qd::runtime {
 namespace fs = std::filesystem;
 
 namespace {
-constexpr char kCheckpointMagic[8] = {'Q', 'D', 'C', 'K', 'P', 'T', '0', '2'};
+constexpr char kCheckpointMagic[8] = {'Q', 'D', 'C', 'K', 'P', 'T', '0', '3'};
 constexpr char kArchiveLogMagic[8] = {'Q', 'D', 'A', 'R', 'L', 'G', '0', '1'};
 constexpr char kDatasetMagic[8] = {'Q', 'D', 'D', 'S', 'E', 'T', '0', '1'};
 constexpr const char* kCheckpointFile = "checkpoint.bin";
@@ -36,6 +38,12 @@ std::size_t record_bytes(std::size_t P, std::size_t dims) {
 // A dataset row: cell, loop (int64), parameters (doubles).
 std::size_t dataset_row_bytes(std::size_t P) {
   return 2 * 8 + P * 8;
+}
+
+std::uint32_t crc32c(const char* bytes, std::size_t size) {
+  boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true> crc;
+  crc.process_bytes(bytes, size);
+  return crc.checksum();
 }
 
 template <class T>
@@ -102,11 +110,13 @@ void CheckpointStore::save(const CheckpointCounters& counters, const std::string
   const std::size_t rec = record_bytes(param_count_, dims_);
   const std::uint64_t live = kArchiveHeaderBytes + archive.size() * rec;
   Append arch;
-  if (archive_bytes_ == 0 || archive_bytes_ + dirty_.size() * rec > 2 * live) {
-    if (archive_bytes_ != 0) {
+  const std::uint64_t saved = archive_chunks_.empty() ? 0 : archive_chunks_.back().end;
+  if (saved == 0 || saved + dirty_.size() * rec > 2 * live) {
+    if (saved != 0) {
       job.remove_after.push_back(archive_log(archive_generation_));
       ++archive_generation_;
     }
+    archive_chunks_.clear();
     arch.offset = 0;
     arch.bytes.reserve(live);
     arch.bytes.append(kArchiveLogMagic, sizeof(kArchiveLogMagic));
@@ -115,19 +125,19 @@ void CheckpointStore::save(const CheckpointCounters& counters, const std::string
     dirty_.resize(archive.size());
     std::iota(dirty_.begin(), dirty_.end(), std::size_t{0});
   } else {
-    arch.offset = archive_bytes_;
+    arch.offset = saved;
   }
   arch.path = archive_log(archive_generation_);
   arch.bytes.reserve(arch.bytes.size() + dirty_.size() * rec);
   for (std::size_t slot : dirty_) append_record(arch.bytes, archive, slot);
-  archive_bytes_ = arch.offset + arch.bytes.size();
+  archive_chunks_.push_back({arch.offset + arch.bytes.size(), crc32c(arch.bytes.data(), arch.bytes.size())});
   job.appends.push_back(std::move(arch));
 
   // The dataset: the rows added since the last checkpoint.
   Append data;
   data.path = dir_ / kDatasetFile;
-  data.offset = dataset_bytes_;
-  if (dataset_bytes_ == 0) {
+  data.offset = dataset_chunks_.empty() ? 0 : dataset_chunks_.back().end;
+  if (data.offset == 0) {
     data.bytes.append(kDatasetMagic, sizeof(kDatasetMagic));
     append_raw(data.bytes, static_cast<std::uint64_t>(param_count_));
   }
@@ -137,8 +147,8 @@ void CheckpointStore::save(const CheckpointCounters& counters, const std::string
     data.bytes.append(reinterpret_cast<const char*>(dataset.params().row(static_cast<Eigen::Index>(k)).data()),
                       param_count_ * sizeof(double));
   }
-  dataset_bytes_ = data.offset + data.bytes.size();
   dataset_rows_ = dataset.size();
+  dataset_chunks_.push_back({data.offset + data.bytes.size(), crc32c(data.bytes.data(), data.bytes.size())});
   job.appends.push_back(std::move(data));
 
   std::ostringstream o(std::ios::binary);
@@ -154,14 +164,21 @@ void CheckpointStore::save(const CheckpointCounters& counters, const std::string
     state::write<std::uint64_t>(o, size);
   }
   state::write<std::uint64_t>(o, archive_generation_);
-  state::write<std::uint64_t>(o, archive_bytes_);
   state::write<std::uint64_t>(o, archive.size());
   state::write<std::uint64_t>(o, dataset.size());
+  for (const auto* chunks : {&archive_chunks_, &dataset_chunks_}) {
+    state::write<std::uint64_t>(o, chunks->size());
+    for (const Chunk& c : *chunks) {
+      state::write<std::uint64_t>(o, c.end);
+      state::write<std::uint32_t>(o, c.crc);
+    }
+  }
   state::write_string(o, blob_of(*components.representation));
   state::write_string(o, blob_of(*components.mutator));
   state::write_string(o, blob_of(*components.initial));
-  if (!o) throw Error("cannot serialise the checkpoint");
+  if (!o) throw SystemError("cannot serialise the checkpoint");
   job.checkpoint = o.str();
+  append_raw(job.checkpoint, crc32c(job.checkpoint.data(), job.checkpoint.size()));
 
   std::lock_guard<std::mutex> lock(mutex_);
   job_ = std::move(job);
@@ -200,12 +217,12 @@ void CheckpointStore::write(const Job& job) const {
   // Appended data first: a checkpoint that counts it must never be visible before it is durable.
   for (const Append& a : job.appends) {
     Fd f{::open(a.path.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644)};
-    if (f.fd < 0) throw Error("cannot open " + a.path.string() + ": " + std::strerror(errno));
+    if (f.fd < 0) throw SystemError("cannot open " + a.path.string() + ": " + std::strerror(errno));
     if (::ftruncate(f.fd, static_cast<off_t>(a.offset)) != 0 ||
         ::lseek(f.fd, static_cast<off_t>(a.offset), SEEK_SET) < 0)
-      throw Error("cannot truncate " + a.path.string() + ": " + std::strerror(errno));
+      throw SystemError("cannot truncate " + a.path.string() + ": " + std::strerror(errno));
     write_all(f.fd, a.bytes.data(), a.bytes.size(), a.path);
-    if (::fsync(f.fd) != 0) throw Error("cannot flush " + a.path.string() + ": " + std::strerror(errno));
+    if (::fsync(f.fd) != 0) throw SystemError("cannot flush " + a.path.string() + ": " + std::strerror(errno));
   }
   write_file_atomic(dir_ / kCheckpointFile, job.checkpoint);
   for (const auto& p : job.remove_after) {
@@ -214,37 +231,53 @@ void CheckpointStore::write(const Job& job) const {
   }
 }
 
-void CheckpointStore::load_archive(Archive& archive, std::uint64_t generation, std::uint64_t bytes, std::uint64_t slots,
-                                   bool tidy) {
-  const fs::path path = archive_log(generation);
+namespace {
+// Reads an append-only file and checks every chunk against its recorded CRC-32C.
+std::string read_verified(const fs::path& path, const std::vector<CheckpointStore::Chunk>& chunks) {
+  const std::uint64_t size = chunks.empty() ? 0 : chunks.back().end;
   std::ifstream in(path, std::ios::binary);
   if (!in) throw StateError(path.string() + " is missing");
-  char magic[sizeof(kArchiveLogMagic)];
-  std::uint64_t P = 0, dims = 0;
-  if (!in.read(magic, sizeof(magic)) || !std::equal(magic, magic + sizeof(magic), kArchiveLogMagic) ||
-      !in.read(reinterpret_cast<char*>(&P), sizeof(P)) || !in.read(reinterpret_cast<char*>(&dims), sizeof(dims)))
+  std::string bytes(size, '\0');
+  if (!in.read(bytes.data(), static_cast<std::streamsize>(size)))
+    throw StateError(path.string() + " is shorter than the checkpoint records (" + std::to_string(size) + " bytes)");
+  std::uint64_t begin = 0;
+  for (const auto& c : chunks) {
+    if (c.end < begin || c.end > size)
+      throw StateError("the checkpoint's chunk list of " + path.string() + " is inconsistent");
+    if (crc32c(bytes.data() + begin, c.end - begin) != c.crc)
+      throw StateError(path.string() + ": bytes " + std::to_string(begin) + " to " + std::to_string(c.end) +
+                       " do not match their checksum (the file was changed or corrupted)");
+    begin = c.end;
+  }
+  return bytes;
+}
+}  // namespace
+
+void CheckpointStore::load_archive(Archive& archive, std::uint64_t slots, bool tidy) {
+  const fs::path path = archive_log(archive_generation_);
+  const std::string bytes = read_verified(path, archive_chunks_);
+  std::uint64_t shape[2] = {0, 0};
+  if (bytes.size() < kArchiveHeaderBytes || !std::equal(kArchiveLogMagic, kArchiveLogMagic + 8, bytes.data()))
     throw StateError(path.string() + " is not a qdrun archive state file");
-  if (P != param_count_ || dims != dims_) throw StateError(path.string() + " has another shape than this experiment");
+  std::memcpy(shape, bytes.data() + 8, sizeof(shape));
+  if (shape[0] != param_count_ || shape[1] != dims_)
+    throw StateError(path.string() + " has another shape than this experiment");
   const std::size_t rec = record_bytes(param_count_, dims_);
-  if (bytes < kArchiveHeaderBytes || (bytes - kArchiveHeaderBytes) % rec != 0)
+  if ((bytes.size() - kArchiveHeaderBytes) % rec != 0)
     throw StateError("the checkpoint's archive size is inconsistent");
-  std::vector<char> buf(rec);
-  for (std::uint64_t k = 0, n = (bytes - kArchiveHeaderBytes) / rec; k < n; ++k) {
-    if (!in.read(buf.data(), static_cast<std::streamsize>(rec)))
-      throw StateError(path.string() + " is shorter than the checkpoint counts");
+  std::vector<double> desc(dims_), theta(param_count_);
+  for (std::size_t at = kArchiveHeaderBytes; at < bytes.size(); at += rec) {
+    const char* r = bytes.data() + at;
     std::int64_t head[2];
     double values[2];
-    std::memcpy(head, buf.data(), sizeof(head));
-    std::memcpy(values, buf.data() + 16, sizeof(values));
-    std::vector<double> desc(dims_), theta(param_count_);
-    std::memcpy(desc.data(), buf.data() + 32, dims_ * sizeof(double));
-    std::memcpy(theta.data(), buf.data() + 32 + dims_ * sizeof(double), param_count_ * sizeof(double));
-    if (head[0] < 0) throw StateError(path.string() + " holds a negative slot");
+    std::memcpy(head, r, sizeof(head));
+    std::memcpy(values, r + 16, sizeof(values));
+    std::memcpy(desc.data(), r + 32, dims_ * sizeof(double));
+    std::memcpy(theta.data(), r + 32 + dims_ * sizeof(double), param_count_ * sizeof(double));
+    if (head[0] < 0) throw StateError(path.string() + " holds a negative slot at byte " + std::to_string(at));
     archive.restore(static_cast<std::size_t>(head[0]), head[1], theta.data(), desc.data(), values[0], values[1]);
   }
   if (archive.size() != slots) throw StateError(path.string() + " does not hold the checkpoint's elites");
-  archive_generation_ = generation;
-  archive_bytes_ = bytes;
   if (tidy) {  // generations of a compaction whose checkpoint never committed
     for (const auto& e : fs::directory_iterator(dir_)) {
       const std::string name = e.path().filename().string();
@@ -255,26 +288,26 @@ void CheckpointStore::load_archive(Archive& archive, std::uint64_t generation, s
 
 void CheckpointStore::load_dataset(Dataset& dataset, std::uint64_t rows) {
   const fs::path path = dir_ / kDatasetFile;
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw StateError(path.string() + " is missing");
-  char magic[sizeof(kDatasetMagic)];
+  const std::string bytes = read_verified(path, dataset_chunks_);
   std::uint64_t P = 0;
-  if (!in.read(magic, sizeof(magic)) || !std::equal(magic, magic + sizeof(magic), kDatasetMagic) ||
-      !in.read(reinterpret_cast<char*>(&P), sizeof(P)))
+  if (bytes.size() < kDatasetHeaderBytes || !std::equal(kDatasetMagic, kDatasetMagic + 8, bytes.data()))
     throw StateError(path.string() + " is not a qdrun dataset file");
+  std::memcpy(&P, bytes.data() + 8, sizeof(P));
   if (P != param_count_) throw StateError(path.string() + " has another parameter count than this experiment");
-  std::vector<double> theta(P);
-  for (std::uint64_t k = 0; k < rows; ++k) {
+  const std::size_t row = dataset_row_bytes(param_count_);
+  if (bytes.size() != kDatasetHeaderBytes + rows * row)
+    throw StateError(path.string() + " does not hold the checkpoint's " + std::to_string(rows) + " rows");
+  std::vector<double> theta(param_count_);
+  for (std::size_t at = kDatasetHeaderBytes; at < bytes.size(); at += row) {
     std::int64_t cell = 0, loop = 0;
-    if (!in.read(reinterpret_cast<char*>(&cell), sizeof(cell)) ||
-        !in.read(reinterpret_cast<char*>(&loop), sizeof(loop)) ||
-        !in.read(reinterpret_cast<char*>(theta.data()), static_cast<std::streamsize>(P * sizeof(double))))
-      throw StateError(path.string() + " holds fewer rows than the checkpoint counts");
-    if (dataset.contains_cell(cell)) throw StateError(path.string() + " holds a cell twice");
+    std::memcpy(&cell, bytes.data() + at, 8);
+    std::memcpy(&loop, bytes.data() + at + 8, 8);
+    std::memcpy(theta.data(), bytes.data() + at + 16, param_count_ * sizeof(double));
+    if (cell < 0 || dataset.contains_cell(cell))
+      throw StateError(path.string() + " holds an invalid or repeated cell at byte " + std::to_string(at));
     dataset.add(theta.data(), cell, static_cast<int>(loop));
   }
   dataset_rows_ = dataset.size();
-  dataset_bytes_ = kDatasetHeaderBytes + rows * dataset_row_bytes(P);
 }
 
 CheckpointStore::Loaded CheckpointStore::load(Archive& archive, Dataset& dataset, const Components& components,
@@ -282,12 +315,17 @@ CheckpointStore::Loaded CheckpointStore::load(Archive& archive, Dataset& dataset
   const fs::path file = dir_ / kCheckpointFile;
   std::ifstream in(file, std::ios::binary);
   if (!in) throw StateError(file.string() + " is missing");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  std::istringstream i(ss.str(), std::ios::binary);
-  char magic[sizeof(kCheckpointMagic)];
-  if (!i.read(magic, sizeof(magic)) || !std::equal(magic, magic + sizeof(magic), kCheckpointMagic))
-    throw StateError(file.string() + " is not a qdrun checkpoint");
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::uint32_t stored_crc = 0;
+  if (bytes.size() < sizeof(kCheckpointMagic) + sizeof(stored_crc) ||
+      !std::equal(kCheckpointMagic, kCheckpointMagic + sizeof(kCheckpointMagic), bytes.data()))
+    throw StateError(file.string() + " is not a qdrun checkpoint of this version");
+  std::memcpy(&stored_crc, bytes.data() + bytes.size() - sizeof(stored_crc), sizeof(stored_crc));
+  bytes.resize(bytes.size() - sizeof(stored_crc));
+  if (crc32c(bytes.data(), bytes.size()) != stored_crc)
+    throw StateError(file.string() + " does not match its checksum (the file was changed or corrupted)");
+  std::istringstream i(bytes, std::ios::binary);
+  i.ignore(sizeof(kCheckpointMagic));
   Loaded out;
   out.config = state::read_string(i);
   out.counters.loop = state::read<std::int32_t>(i);
@@ -299,11 +337,17 @@ CheckpointStore::Loaded CheckpointStore::load(Archive& archive, Dataset& dataset
     std::string name = state::read_string(i);
     out.logs.emplace_back(std::move(name), state::read<std::uint64_t>(i));
   }
-  const auto generation = state::read<std::uint64_t>(i);
-  const auto archive_bytes = state::read<std::uint64_t>(i);
+  archive_generation_ = state::read<std::uint64_t>(i);
   const auto archive_slots = state::read<std::uint64_t>(i);
   const auto dataset_rows = state::read<std::uint64_t>(i);
-  load_archive(archive, generation, archive_bytes, archive_slots, tidy);
+  for (auto* chunks : {&archive_chunks_, &dataset_chunks_}) {
+    chunks->resize(state::read<std::uint64_t>(i));
+    for (Chunk& c : *chunks) {
+      c.end = state::read<std::uint64_t>(i);
+      c.crc = state::read<std::uint32_t>(i);
+    }
+  }
+  load_archive(archive, archive_slots, tidy);
   load_dataset(dataset, dataset_rows);
   auto blob = [&](auto& component, const char* what) {
     std::istringstream b(state::read_string(i), std::ios::binary);

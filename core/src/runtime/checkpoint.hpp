@@ -12,7 +12,9 @@
 //  * dataset.bin: the training dataset, append-only (it only grows).
 // Appended bytes become durable before the checkpoint that counts them is committed; bytes past
 // the committed sizes (from a checkpoint that never committed) are cut away by the next write or
-// ignored by a load.
+// ignored by a load. Every appended chunk has a CRC-32C recorded in checkpoint.bin, and
+// checkpoint.bin ends with the CRC-32C of the rest of it, so a load verifies every byte it uses
+// and names the file and the byte range of any corruption.
 //
 // Writing happens on a background thread while the next loop runs (the loop only copies the
 // changed records into a buffer): on Striker a checkpoint writes tens of megabytes per loop.
@@ -48,6 +50,13 @@ using LogSize = std::pair<std::string, std::uint64_t>;
 
 class CheckpointStore {
  public:
+  // One appended piece of an append-only file: it ends at `end` (its start is the previous
+  // chunk's end, or 0) and has this CRC-32C.
+  struct Chunk {
+    std::uint64_t end;
+    std::uint32_t crc;
+  };
+
   // The components whose state a checkpoint carries.
   struct Components {
     Representation* representation;
@@ -92,15 +101,15 @@ class CheckpointStore {
   void write(const Job& job) const;
   void work();
   std::filesystem::path archive_log(std::uint64_t generation) const;
-  void load_archive(Archive& archive, std::uint64_t generation, std::uint64_t bytes, std::uint64_t slots, bool tidy);
+  void load_archive(Archive& archive, std::uint64_t slots, bool tidy);
   void load_dataset(Dataset& dataset, std::uint64_t rows);
 
   std::filesystem::path dir_;
   std::size_t param_count_, dims_;
   std::uint64_t archive_generation_ = 0;
-  std::uint64_t archive_bytes_ = 0;  // committed (or in flight) size of the current generation
+  std::vector<Chunk> archive_chunks_;  // of the current generation, committed or in flight
+  std::vector<Chunk> dataset_chunks_;
   std::size_t dataset_rows_ = 0;
-  std::uint64_t dataset_bytes_ = 0;
   std::vector<std::size_t> dirty_;
 
   std::mutex mutex_;

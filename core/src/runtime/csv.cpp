@@ -38,7 +38,7 @@ void write_all(int fd, const char* bytes, std::size_t size, const fs::path& path
     const ssize_t w = ::write(fd, bytes, size);
     if (w < 0) {
       if (errno == EINTR) continue;
-      throw Error("cannot write " + path.string() + ": " + std::strerror(errno));
+      throw SystemError("cannot write " + path.string() + ": " + std::strerror(errno));
     }
     bytes += w;
     size -= static_cast<std::size_t>(w);
@@ -51,7 +51,7 @@ namespace {
 void rename_durably(const fs::path& tmp, const fs::path& path) {
   std::error_code ec;
   fs::rename(tmp, path, ec);
-  if (ec) throw Error("cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message());
+  if (ec) throw SystemError("cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message());
   const int dfd =
       ::open(path.parent_path().empty() ? "." : path.parent_path().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dfd >= 0) {
@@ -69,7 +69,7 @@ void write_file_atomic(const fs::path& path, const std::string& content) {
 
 AtomicFile::AtomicFile(fs::path path) : path_(std::move(path)), tmp_(path_.string() + ".tmp") {
   fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd_ < 0) throw Error("cannot create " + tmp_.string() + ": " + std::strerror(errno));
+  if (fd_ < 0) throw SystemError("cannot create " + tmp_.string() + ": " + std::strerror(errno));
 }
 
 AtomicFile::~AtomicFile() {
@@ -79,12 +79,12 @@ AtomicFile::~AtomicFile() {
 }
 
 void AtomicFile::commit() {
-  if (::fsync(fd_) != 0) throw Error("cannot flush " + tmp_.string() + ": " + std::strerror(errno));
+  if (::fsync(fd_) != 0) throw SystemError("cannot flush " + tmp_.string() + ": " + std::strerror(errno));
   const int fd = fd_;
   fd_ = -1;
   if (::close(fd) != 0) {
     ::unlink(tmp_.c_str());
-    throw Error("cannot write " + tmp_.string() + ": " + std::strerror(errno));
+    throw SystemError("cannot write " + tmp_.string() + ": " + std::strerror(errno));
   }
   rename_durably(tmp_, path_);
 }
@@ -96,7 +96,7 @@ AppendLog::~AppendLog() {
 void AppendLog::append(const std::string& text) {
   if (fd_ < 0) {
     fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-    if (fd_ < 0) throw Error("cannot open " + path_.string() + " for appending: " + std::strerror(errno));
+    if (fd_ < 0) throw SystemError("cannot open " + path_.string() + " for appending: " + std::strerror(errno));
   }
   write_all(fd_, text.data(), text.size(), path_);
 }

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <string>
+#include <system_error>
 
 namespace qd::runtime {
 
@@ -17,16 +18,29 @@ int hardware_workers() {
 }
 
 WorkerPool::WorkerPool(int threads) {
-  for (int i = 1; i < threads; ++i) threads_.emplace_back([this] { work(); });
+  try {
+    for (int i = 1; i < threads; ++i) threads_.emplace_back([this] { work(); });
+  } catch (const std::system_error& e) {
+    // The threads made so far wait on this object's condition variable: stop and join them before
+    // the members they use are destroyed (a container's thread limit, ulimit -u).
+    stop();
+    throw SystemError("cannot create evaluation thread " + std::to_string(threads_.size() + 1) + " of " +
+                      std::to_string(threads - 1) + ": " + e.what() + "; use fewer --workers");
+  }
 }
 
 WorkerPool::~WorkerPool() {
+  stop();
+}
+
+void WorkerPool::stop() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     stop_ = true;
   }
   wake_.notify_all();
   for (auto& t : threads_) t.join();
+  threads_.clear();
 }
 
 void WorkerPool::run(std::size_t n, const std::function<void(std::size_t)>& fn) {

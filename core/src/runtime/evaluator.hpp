@@ -103,6 +103,7 @@ class WorkerPool {
 
  private:
   void work();
+  void stop();  // ends and joins the threads
   std::vector<std::thread> threads_;
   std::mutex mutex_;
   std::condition_variable wake_, done_;

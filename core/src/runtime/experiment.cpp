@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 namespace qd::runtime {
@@ -27,7 +28,7 @@ namespace {
 std::string location(const toml::source_region& src) {
   if (!src.path) return "<unknown>";
   const std::string& p = *src.path;
-  if (p.rfind("--set", 0) == 0) return p;  // overrides name themselves
+  if (p.rfind("--", 0) == 0) return p;  // command-line options (--set, --seed, --backend) name themselves
   return p + ":" + std::to_string(src.begin.line) + ":" + std::to_string(src.begin.column);
 }
 
@@ -338,13 +339,13 @@ fs::path Document::file() const {
   return impl->file;
 }
 
-void Document::apply_override(const std::string& assignment) {
+void Document::apply_override(const std::string& assignment, const std::string& option) {
   const std::size_t eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)
     throw InputError("--set " + assignment + ": expected KEY.PATH=VALUE, for example --set mutator.sigma=0.05");
   const std::string path = assignment.substr(0, eq);
   const std::string value = assignment.substr(eq + 1);
-  const std::string source = "--set " + assignment;
+  const std::string source = option.empty() ? "--set " + assignment : option;
   toml::table parsed;
   try {
     parsed = toml::parse("v = " + value, source);
@@ -540,6 +541,44 @@ std::string describe_params(const ParamSpec* params, std::size_t count) {
     o << ")\n      " << (s.help ? s.help : "") << "\n";
   }
   return o.str();
+}
+
+}  // namespace qd::runtime
+
+namespace qd::runtime {
+namespace {
+void flatten(const toml::table& t, const std::string& prefix, std::map<std::string, std::string>& out) {
+  for (const auto& [key, node] : t) {
+    const std::string path = prefix.empty() ? std::string(key.str()) : prefix + "." + std::string(key.str());
+    if (const toml::table* sub = node.as_table()) {
+      flatten(*sub, path, out);
+    } else {
+      std::ostringstream o;
+      if (const toml::array* a = node.as_array())
+        o << *a;
+      else
+        node.visit([&](const auto& v) { o << v; });
+      out[path] = o.str();
+    }
+  }
+}
+}  // namespace
+
+std::vector<ConfigDifference> config_differences(const std::string& before, const std::string& after) {
+  std::map<std::string, std::string> a, b;
+  flatten(toml::parse(before, std::string_view("checkpoint")), "", a);
+  flatten(toml::parse(after, std::string_view("config.toml")), "", b);
+  std::vector<ConfigDifference> out;
+  for (const auto& [key, value] : a) {
+    const auto it = b.find(key);
+    if (it == b.end())
+      out.push_back({key, value, "(absent)"});
+    else if (it->second != value)
+      out.push_back({key, value, it->second});
+  }
+  for (const auto& [key, value] : b)
+    if (a.count(key) == 0) out.push_back({key, "(absent)", value});
+  return out;
 }
 
 }  // namespace qd::runtime

@@ -64,7 +64,8 @@ class Document {
   static Document parse(const std::string& text, const std::string& source_name);
 
   // Applies `key.path=value`; value is TOML value syntax, or a bare word taken as a string.
-  void apply_override(const std::string& assignment);
+  // Errors name `option` (the command-line option it came from), or "--set key.path=value".
+  void apply_override(const std::string& assignment, const std::string& option = {});
 
   // [plugins] path entries (absolute), available before plugins are loaded.
   std::vector<std::string> plugin_paths() const;
@@ -89,6 +90,13 @@ struct CoreTable {
   std::size_t count;
 };
 std::vector<CoreTable> core_tables();
+
+// The keys whose values differ between two resolved configurations (TOML texts), with both
+// values as TOML text ("(absent)" where a key is missing), in key order.
+struct ConfigDifference {
+  std::string key, before, after;
+};
+std::vector<ConfigDifference> config_differences(const std::string& before, const std::string& after);
 
 // Renders a component's parameters for `qdrun --describe`.
 std::string describe_params(const ParamSpec* params, std::size_t count);

@@ -64,7 +64,7 @@ ProcessEvaluator::ProcessEvaluator(const Environment& env, const Descriptor& des
   const std::size_t records_bytes = round_up(capacity_ * width_ * sizeof(double));
   map_bytes_ = ctl_bytes + params_bytes + seeds_bytes + records_bytes;
   map_ = ::mmap(nullptr, map_bytes_, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
-  if (map_ == MAP_FAILED) throw Error("cannot map " + std::to_string(map_bytes_) + " bytes of shared memory");
+  if (map_ == MAP_FAILED) throw SystemError("cannot map " + std::to_string(map_bytes_) + " bytes of shared memory");
   auto* base = static_cast<char*>(map_);
   ctl_ = new (base) Control;
   params_ = reinterpret_cast<double*>(base + ctl_bytes);
@@ -80,7 +80,7 @@ ProcessEvaluator::ProcessEvaluator(const Environment& env, const Descriptor& des
       for (auto& q : pairs)
         if (&q != &p && q[0] > 0) ::close(q[0]), ::close(q[1]);
       ::munmap(map_, map_bytes_);
-      throw Error(std::string("cannot create worker sockets: ") + std::strerror(errno));
+      throw SystemError(std::string("cannot create worker sockets: ") + std::strerror(errno));
     }
   const pid_t parent = ::getpid();
   for (std::size_t k = 0; k < n; ++k) {
@@ -98,7 +98,7 @@ ProcessEvaluator::ProcessEvaluator(const Environment& env, const Descriptor& des
     if (pid < 0) {
       for (std::size_t j = k; j < n; ++j) ::close(pairs[j][0]), ::close(pairs[j][1]);
       shut_down();
-      throw Error(std::string("cannot fork a worker process: ") + std::strerror(errno));
+      throw SystemError(std::string("cannot fork a worker process: ") + std::strerror(errno));
     }
     ::close(pairs[k][1]);
     children_.push_back({pid, pairs[k][0]});

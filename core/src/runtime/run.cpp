@@ -47,9 +47,46 @@ fs::path run_directory_of(const ExperimentSettings& s, const RunOptions& opt) {
                                : fs::path(opt.directory);
 }
 
+// Bytes the system can still give this process (MemAvailable), 0 when unknown.
+std::uint64_t available_memory() {
+  std::ifstream in("/proc/meminfo");
+  std::string key, unit;
+  std::uint64_t kb = 0;
+  while (in >> key >> kb >> unit)
+    if (key == "MemAvailable:") return kb * 1024;
+  return 0;
+}
+
+std::string gigabytes(double bytes) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.1f GB", bytes / 1e9);
+  return buf;
+}
+
+// Refuses a run that cannot fit in memory before anything is allocated, instead of being killed
+// by the kernel later: the batch buffers (offspring, parents, the process backend's shared copy)
+// and, at worst, an archive, a dataset and a checkpoint buffer with one policy in every cell the
+// budget can reach.
+void check_memory(const ExperimentSettings& s, const Components& c) {
+  const double P = static_cast<double>(c.shape.param_count());
+  const double batch = std::max(s.batch, s.initial_samples);
+  const double batches = 4.0 * batch * P * 8.0;
+  const double budget = s.initial_samples + static_cast<double>(s.loops - 1) * s.iterations * s.batch;
+  const double stores = 3.0 * std::min(static_cast<double>(c.grid.cells), budget) * P * 8.0;
+  const std::uint64_t available = available_memory();
+  if (available > 0 && batches + stores > static_cast<double>(available))
+    throw InputError("the run needs about " + gigabytes(batches + stores) + " of memory (batches of " +
+                     std::to_string(static_cast<long long>(batch)) + " policies of " +
+                     std::to_string(c.shape.param_count()) + " parameters: " + gigabytes(batches) +
+                     "; archive and dataset: up to " + gigabytes(stores) + "), but " +
+                     gigabytes(static_cast<double>(available)) +
+                     " are available; lower experiment.batch or experiment.initial_samples");
+}
+
 std::unique_ptr<Evaluator> make_run_evaluator(const Experiment& ex, const Components& c, const RunOptions& opt,
                                               const fs::path& dir) {
   const ExperimentSettings& s = ex.settings;
+  check_memory(s, c);
   EvaluatorSpec spec;
   spec.workers = opt.workers > 0 ? opt.workers : (s.workers > 0 ? s.workers : hardware_workers());
   spec.backend = opt.backend.empty() ? s.backend : opt.backend;
@@ -92,8 +129,9 @@ void Run::create_directory() {
 void Run::open_for_resume() {
   if (!CheckpointStore::exists(dir_.path()))
     throw InputError(dir_.path().string() +
-                     " has no checkpoint to resume from (the run stopped before the end of loop 0)");
-  dir_.check_writable();
+                     " has no checkpoint to resume from: the run stopped before the end of loop 0, so there is "
+                     "nothing to keep; delete the directory and start the run again");
+  dir_.open();
   load_checkpoint(true);
   dir_.write_config(ex_.resolved_toml);
   dir_.write("grid.toml", grid_toml(c_.grid));
@@ -107,17 +145,62 @@ void Run::open_for_inspection() {
   load_checkpoint(false);
 }
 
-void Run::load_checkpoint(bool tidy) {
+std::vector<std::string> Run::log_names() const {
+  std::vector<std::string> names = {"metrics.csv", "training.csv"};
+  for (const std::string& name : c_.representation->log_files()) names.push_back(name);
+  return names;
+}
+
+namespace {
+// Keys --resume may change: the budget (loops), how and where evaluations run, what is written,
+// and where plugins are found. Everything else would make the resumed run another experiment.
+bool may_change_on_resume(const std::string& key) {
+  for (const char* prefix : {"evaluation.", "output.", "plugins."})
+    if (key.rfind(prefix, 0) == 0) return true;
+  return key == "experiment.loops" || key == "experiment.name";
+}
+}  // namespace
+
+void Run::load_checkpoint(bool resuming) {
+  const ExperimentSettings& s = ex_.settings;
   try {
     const CheckpointStore::Loaded loaded =
-        checkpoints_.load(archive_, dataset_, {c_.representation.get(), c_.mutator.get(), c_.initial.get()}, tidy);
-    if (tidy) dir_.cut_logs(loaded.logs);
-    loop_.set_evaluations(loaded.counters.evaluations);
-    wall_before_ = loaded.counters.wall_seconds;
-    train_seconds_ = loaded.counters.train_seconds;
-    next_loop_ = loaded.counters.loop + 1;
+        checkpoints_.load(archive_, dataset_, {c_.representation.get(), c_.mutator.get(), c_.initial.get()}, resuming);
+    const CheckpointCounters& n = loaded.counters;
+    if (resuming) {
+      // The configuration stored in the checkpoint is the truth; config.toml is a readable copy.
+      for (const ConfigDifference& d : config_differences(loaded.config, ex_.resolved_toml))
+        if (!may_change_on_resume(d.key))
+          throw InputError(dir_.path().string() + ": cannot resume: " + d.key + " is " + d.after +
+                           " in config.toml (or --set) but the run was made with " + d.before +
+                           "; only experiment.loops and the [evaluation], [output] and [plugins] keys may change");
+      if (n.loop + 1 > s.loops)
+        throw InputError(dir_.path().string() + ": cannot resume: experiment.loops = " + std::to_string(s.loops) +
+                         " is below the " + std::to_string(n.loop + 1) + " loops that have run");
+    }
+    // The counters against each other and, when resuming, against the logs.
+    const std::uint64_t expected = static_cast<std::uint64_t>(s.initial_samples) +
+                                   static_cast<std::uint64_t>(n.loop) * static_cast<std::uint64_t>(s.iterations) *
+                                       static_cast<std::uint64_t>(s.batch);
+    if (n.loop < 0 || n.evaluations != expected || archive_.size() > dataset_.size())
+      throw StateError("checkpoint.bin: its counters disagree (loop " + std::to_string(n.loop) + ", " +
+                       std::to_string(n.evaluations) + " evaluations, " + std::to_string(archive_.size()) +
+                       " elites, " + std::to_string(dataset_.size()) + " dataset rows)");
+    if (resuming) {
+      dir_.cut_logs(loaded.logs, log_names());
+      const std::size_t rows = dir_.count_lines("metrics.csv"),
+                        want = 2 + static_cast<std::size_t>(n.loop) * s.iterations;
+      if (rows != want)
+        throw StateError("metrics.csv has " + std::to_string(rows) + " lines where the checkpoint of loop " +
+                         std::to_string(n.loop) + " expects " + std::to_string(want) + ": it was edited");
+    }
+    loop_.set_evaluations(n.evaluations);
+    wall_before_ = n.wall_seconds;
+    train_seconds_ = n.train_seconds;
+    next_loop_ = n.loop + 1;
   } catch (const StateError& e) {
-    throw InputError(dir_.path().string() + ": cannot resume: " + e.what());
+    throw InputError(dir_.path().string() + ": cannot resume: " + e.what() +
+                     "; restore the file, or delete the run directory and start again");
   }
 }
 
@@ -150,7 +233,7 @@ bool Run::run() {
 
 void Run::save_checkpoint(int loop) {
   const CheckpointCounters counters{loop, loop_.evaluations(), wall_seconds(), train_seconds_};
-  checkpoints_.save(counters, ex_.resolved_toml, dir_.log_sizes(), archive_, dataset_,
+  checkpoints_.save(counters, ex_.resolved_toml, dir_.log_sizes(log_names()), archive_, dataset_,
                     {c_.representation.get(), c_.mutator.get(), c_.initial.get()});
 }
 

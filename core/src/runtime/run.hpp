@@ -83,7 +83,10 @@ class Run final : private LoopObserver {
   void iteration_done(const IterationOutcome& outcome) override;
   void training_started(int loop) override;
   void training_done(int loop, const FitReport& report, double seconds) override;
-  void load_checkpoint(bool tidy);
+  // Loads and verifies the checkpoint; `resuming` also checks the configuration against the
+  // checkpoint's and cuts the logs back to it.
+  void load_checkpoint(bool resuming);
+  std::vector<std::string> log_names() const;
   void save_checkpoint(int loop);
   void write_provenance() const;
   void report(int loop, int iteration, bool loop_finished, const std::string& note = {});

@@ -2,29 +2,79 @@
 
 #include <qd/errors.hpp>
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
 
 namespace qd::runtime {
 namespace fs = std::filesystem;
 
 namespace {
-bool is_appended_log(const fs::path& p) {
-  return p.extension() == ".csv" && p.filename() != "archive.csv";
-}
+constexpr const char* kLockFile = "lock";
 }  // namespace
 
 RunDirectory::RunDirectory(fs::path dir)
     : dir_(std::move(dir)), metrics_(dir_ / "metrics.csv"), training_(dir_ / "training.csv") {}
 
+RunDirectory::~RunDirectory() {
+  if (lock_fd_ >= 0) ::close(lock_fd_);  // releases the lock
+}
+
+std::string RunDirectory::holder(const fs::path& dir) {
+  const int fd = ::open((dir / kLockFile).c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return "";
+  std::string who;
+  if (::flock(fd, LOCK_SH | LOCK_NB) != 0) {
+    char buf[256] = {0};
+    const ssize_t n = ::read(fd, buf, sizeof(buf) - 1);
+    who = n > 0 ? std::string(buf, static_cast<std::size_t>(n)) : std::string("another process");
+    while (!who.empty() && who.back() == '\n') who.pop_back();
+  }
+  ::close(fd);
+  return who;
+}
+
+void RunDirectory::lock() {
+  if (lock_fd_ >= 0) return;
+  const fs::path path = dir_ / kLockFile;
+  // Not inherited by the processes qdrun starts; worker processes forked by qdrun do share it,
+  // which is right: they belong to this run.
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) throw InputError("cannot create " + path.string() + ": " + std::strerror(errno));
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    ::close(fd);
+    const std::string who = holder(dir_);
+    throw InputError(dir_.string() + " is in use by qdrun " + (who.empty() ? std::string("(unknown)") : who) +
+                     "; wait for it to finish or stop it first");
+  }
+  char host[256] = {0};
+  ::gethostname(host, sizeof(host) - 1);
+  const std::string me = "pid " + std::to_string(::getpid()) + " on host " + host + "\n";
+  if (::ftruncate(fd, 0) != 0 || ::pwrite(fd, me.data(), me.size(), 0) != static_cast<ssize_t>(me.size())) {
+    ::close(fd);
+    throw SystemError("cannot write " + path.string() + ": " + std::strerror(errno));
+  }
+  lock_fd_ = fd;
+}
+
+void RunDirectory::open() {
+  check_writable();
+  lock();
+}
+
 void RunDirectory::create(const std::string& config, const std::string& metrics_header) {
   std::error_code ec;
-  if (fs::exists(dir_ / "config.toml", ec) || CheckpointStore::exists(dir_))
-    throw InputError(dir_.string() + " already holds a run; continue it with --resume " + dir_.string() +
-                     ", or choose another --output, --seed or experiment.name");
   fs::create_directories(dir_, ec);
   if (ec) throw InputError("cannot create the run directory " + dir_.string() + ": " + ec.message());
   check_writable();
+  lock();  // before looking, so two runs started together cannot both find the directory empty
+  if (fs::exists(dir_ / "config.toml", ec) || CheckpointStore::exists(dir_))
+    throw InputError(dir_.string() + " already holds a run; continue it with --resume " + dir_.string() +
+                     ", or choose another --output, --seed or experiment.name");
   set_status("running");
   write_config(config);
   write_file_atomic(dir_ / "metrics.csv", metrics_header + "\n");
@@ -53,25 +103,42 @@ void RunDirectory::set_status(const std::string& status) const {
   write_file_atomic(dir_ / "status", status + "\n");
 }
 
-std::vector<LogSize> RunDirectory::log_sizes() const {
+std::vector<LogSize> RunDirectory::log_sizes(const std::vector<std::string>& names) const {
   std::vector<LogSize> logs;
-  for (const auto& e : fs::directory_iterator(dir_))
-    if (e.is_regular_file() && is_appended_log(e.path()))
-      logs.emplace_back(e.path().filename().string(), e.file_size());
+  for (const std::string& name : names) {
+    std::error_code ec;
+    const auto size = fs::file_size(dir_ / name, ec);
+    if (!ec) logs.emplace_back(name, size);
+  }
   std::sort(logs.begin(), logs.end());
   return logs;
 }
 
-void RunDirectory::cut_logs(const std::vector<LogSize>& sizes) const {
-  for (const auto& e : fs::directory_iterator(dir_)) {
-    if (!e.is_regular_file() || !is_appended_log(e.path())) continue;
-    const std::string name = e.path().filename().string();
-    const auto it = std::find_if(sizes.begin(), sizes.end(), [&](const auto& l) { return l.first == name; });
-    if (it == sizes.end())
-      fs::remove(e.path());
-    else if (e.file_size() > it->second)
-      fs::resize_file(e.path(), it->second);
+void RunDirectory::cut_logs(const std::vector<LogSize>& sizes, const std::vector<std::string>& names) const {
+  for (const auto& [name, size] : sizes) {
+    std::error_code ec;
+    const auto now = fs::file_size(dir_ / name, ec);
+    if (ec)
+      throw StateError((dir_ / name).string() + " is missing (the checkpoint records " + std::to_string(size) +
+                       " bytes)");
+    if (now < size)
+      throw StateError((dir_ / name).string() + " is shorter (" + std::to_string(now) +
+                       " bytes) than the checkpoint records (" + std::to_string(size) +
+                       "): it was truncated or edited");
+    if (now > size) fs::resize_file(dir_ / name, size);
   }
+  for (const std::string& name : names) {
+    const bool recorded = std::any_of(sizes.begin(), sizes.end(), [&](const LogSize& l) { return l.first == name; });
+    std::error_code ec;
+    if (!recorded) fs::remove(dir_ / name, ec);  // written after the checkpoint
+  }
+}
+
+std::size_t RunDirectory::count_lines(const std::string& name) const {
+  std::ifstream in(dir_ / name, std::ios::binary);
+  std::size_t lines = 0;
+  for (std::string line; std::getline(in, line);) ++lines;
+  return lines;
 }
 
 }  // namespace qd::runtime

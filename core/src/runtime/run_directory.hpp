@@ -19,14 +19,23 @@ namespace qd::runtime {
 class RunDirectory {
  public:
   explicit RunDirectory(std::filesystem::path dir);
+  ~RunDirectory();
+  RunDirectory(const RunDirectory&) = delete;
+  RunDirectory& operator=(const RunDirectory&) = delete;
 
   const std::filesystem::path& path() const noexcept { return dir_; }
 
-  // A fresh run: creates the directory (error if it already holds a run) and writes the config
-  // and the headers of the logs.
+  // A fresh run: creates the directory, takes its lock (error if it already holds a run) and
+  // writes the config and the headers of the logs.
   void create(const std::string& config, const std::string& metrics_header);
-  // An existing run to continue: error if the directory is not writable.
-  void check_writable() const;
+  // An existing run to continue: takes its lock; error if the directory is not writable.
+  void open();
+
+  // One owner per run directory: an advisory lock (flock on <dir>/lock) held until this object
+  // is destroyed or the process ends. Throws InputError naming the holder's pid and host.
+  void lock();
+  // Who holds the lock of `dir` ("pid N on host H"), or "" when nobody does.
+  static std::string holder(const std::filesystem::path& dir);
 
   void write_config(const std::string& config) const;
   // Replaces the file `name` in the run directory atomically.
@@ -38,14 +47,22 @@ class RunDirectory {
   void append_metrics(const std::string& row) { metrics_.append(row); }
   void append_training(const std::string& row) { training_.append(row); }
 
-  // The logs the run appends to (every *.csv but archive.csv) and their sizes now.
-  std::vector<LogSize> log_sizes() const;
-  // Cuts the logs back to the sizes a checkpoint recorded and removes logs created after it.
-  void cut_logs(const std::vector<LogSize>& sizes) const;
+  // The sizes of the logs the run appends to (`names`: metrics.csv, training.csv and the
+  // representation's), those that exist.
+  std::vector<LogSize> log_sizes(const std::vector<std::string>& names) const;
+  // Cuts the logs back to the sizes a checkpoint recorded, and removes a log of `names` that the
+  // checkpoint does not know (written after it). Throws StateError when a recorded log is missing
+  // or shorter than recorded. Touches no other file.
+  void cut_logs(const std::vector<LogSize>& sizes, const std::vector<std::string>& names) const;
+  // Lines in a file of the run directory (0 if it does not exist).
+  std::size_t count_lines(const std::string& name) const;
 
  private:
+  void check_writable() const;
+
   std::filesystem::path dir_;
   AppendLog metrics_, training_;
+  int lock_fd_ = -1;
 };
 
 }  // namespace qd::runtime
