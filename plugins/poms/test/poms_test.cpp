@@ -6,10 +6,7 @@
 #include <qd/errors.hpp>
 #include <qd/rng.hpp>
 #include <qd/testing/elites.hpp>
-
-#ifdef QD_POMS_TEST_WITH_PCA
-#include "pca.hpp"
-#endif
+#include <qd/testing/linear_model.hpp>
 
 #include <gtest/gtest.h>
 
@@ -265,11 +262,11 @@ TEST(PomsTest, ArchiveMeanThresholdIsTheMeanOfStoredErrors) {
   EXPECT_DOUBLE_EQ(mutator.threshold(), 0.4);
 }
 
-#ifdef QD_POMS_TEST_WITH_PCA
+// PoMS-PCA: a linear decoder with orthonormal rows, as PCA's, makes JᵀJ = I.
 TEST(PomsTest, PcaLatentCovarianceIsSigmaIdentity) {
   const int ld = 3, p = 8;
-  qd::pca::PcaRepresentation pca(ld, p);
-  pca.fit_matrix(gaussian(50, ld, 50) * gaussian(ld, p, 51) + gaussian(50, p, 52, 0.1));
+  const auto model = qd::testing::LinearModel::random(ld, p, 50);
+  const qd::Representation& pca = *model;
   const Matrix parent = gaussian(1, p, 53);
   Matrix z0;
   pca.encode(parent, z0);
@@ -286,13 +283,12 @@ TEST(PomsTest, PcaLatentCovarianceIsSigmaIdentity) {
     EXPECT_LT(fit, 5.0);
     ::testing::Test::RecordProperty(meaning == SigmaMeaning::kVariance ? "max_se_variance" : "max_se_std",
                                     std::to_string(fit));
-    // PCA reconstructs a latent offspring exactly: θ' = Dec(z') and Enc(θ') = z'.
+    // An orthonormal linear model reconstructs a latent offspring exactly: θ' = Dec(z') and Enc(θ') = z'.
     Matrix back;
     pca.encode(out.theta.bottomRows(100), back);
     EXPECT_LT((back - out.latent.bottomRows(100)).cwiseAbs().maxCoeff(), 1e-12);
   }
 }
-#endif
 
 // Parents far apart (parent i ≈ 100·i) so every offspring can be traced to its parent.
 Matrix distinct_parents(Eigen::Index n, Eigen::Index p) {

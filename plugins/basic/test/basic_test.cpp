@@ -1,5 +1,8 @@
-// Samplers and the iso mutator against their formulas (spec 4.1, 4.7, 4.8).
+// Samplers and the iso mutator against their formulas (spec 4.1, 4.7, 4.8), and every component of
+// the plugin through the shipped conformance checks (qd/testing).
 #include "basic.hpp"
+
+#include <qd/testing/conformance.hpp>
 
 #include <gtest/gtest.h>
 
@@ -85,4 +88,11 @@ TEST(Samplers, IsoAddsGaussianNoiseOfStdSigma) {
   EXPECT_NEAR(d.mean(), 0.0, 5 * 0.3 / std::sqrt(n));
   EXPECT_NEAR(d.array().square().mean(), 0.09, 5 * 0.09 * std::sqrt(2.0 / n));
   EXPECT_EQ(off.mixing_ratio, 1.0);
+}
+
+TEST(NoRepresentation, Conforms) {
+  const qd::testing::Report report = qd::testing::check_representation(
+      [] { return std::make_unique<NoRepresentation>(Config("representation"), BuildContext{}); },
+      qd::testing::make_dataset(qd::testing::random_matrix(10, 7, 3)));
+  EXPECT_TRUE(report.ok()) << report;
 }
