@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # configure_subsets.sh SRC WORK [cmake args...]: configures SRC once per plugin/environment
-# directory alone (-DQD_ONLY_DIRS=<dir>), checking that its plugin target exists. Nothing is built.
+# directory alone (-DQD_ONLY_DIRS=<dir>), checking that its plugin target exists, and once with
+# -DBUILD_TESTING=OFF, checking that no test is registered. Nothing is built.
 set -euo pipefail
 src=$1 work=$2
 shift 2
@@ -30,5 +31,16 @@ for d in "$src"/plugins/*/ "$src"/environments/*/; do
   fi
   echo "ok: QD_ONLY_DIRS=$dir"
 done
+configure no-tests "$@" -DBUILD_TESTING=OFF -DQD_BUILD_BENCHMARKS=OFF || exit 1
+if [ -n "$(cd "$work/no-tests" && ctest -N | grep 'Test *#')" ]; then
+  echo "FAIL: BUILD_TESTING=OFF still registers tests:"
+  (cd "$work/no-tests" && ctest -N | head)
+  status=1
+elif grep -q "_tests.dir$" "$work/no-tests/CMakeFiles/TargetDirectories.txt"; then
+  echo "FAIL: BUILD_TESTING=OFF still defines test programs"
+  status=1
+else
+  echo "ok: BUILD_TESTING=OFF registers and builds no tests"
+fi
 [ $status -eq 0 ] && rm -rf "$work"
 exit $status

@@ -1,14 +1,34 @@
 #!/usr/bin/env bash
 # Installs qd into a fresh prefix, builds an out-of-tree plugin against it with find_package(qd)
-# and qd_add_plugin(), and runs it through the installed qdrun.
+# and qd_add_plugin(), checks how it was compiled, and runs it through the installed qdrun.
 set -euo pipefail
 build=$1 src=$2 work=$3
 rm -rf "$work"
 cmake --install "$build" --prefix "$work/prefix" > "$work.install.log" 2>&1 || { cat "$work.install.log"; exit 1; }
+fail() { echo "FAIL: $*"; exit 1; }
+# No build type: the example's CMakeLists.txt is the README's four lines, which set none.
 cmake -S "$src/example" -B "$work/example-build" -G Ninja -DCMAKE_PREFIX_PATH="$work/prefix" \
-      -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF > "$work.configure.log" 2>&1 || { cat "$work.configure.log"; exit 1; }
+      -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF -DCMAKE_EXPORT_COMPILE_COMMANDS=ON \
+      > "$work.configure.log" 2>&1 || { cat "$work.configure.log"; exit 1; }
 cmake --build "$work/example-build" > "$work.build.log" 2>&1 || { cat "$work.build.log"; exit 1; }
 test -f "$work/example-build/qd_half_step.so"
+
+# The core's instruction-set flags are recorded in the package, not forced on every consumer
+# target; qd_add_plugin applies them to the plugin, optimised when the project chose no build type,
+# and leaves a build type the project chose alone.
+targets=$(find "$work/prefix" -name qdTargets.cmake)
+arch=$(sed -n 's/^ *QD_ARCH_FLAGS "\(.*\)"$/\1/p' "$targets")
+grep -q INTERFACE_COMPILE_OPTIONS "$targets" && fail "an installed target exports compile options: $targets"
+plugin_command() { grep '"command":.*half_step\.cpp' "$1/compile_commands.json"; }
+cmd=$(plugin_command "$work/example-build")
+grep -qE -- ' -O[23s]? ' <<< "$cmd" || fail "the plugin was compiled without optimisation: $cmd"
+for flag in $arch; do grep -q -- " $flag " <<< "$cmd" || fail "the plugin was compiled without the core's $flag: $cmd"; done
+cmake -S "$src/example" -B "$work/example-debug" -G Ninja -DCMAKE_PREFIX_PATH="$work/prefix" \
+      -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF -DCMAKE_EXPORT_COMPILE_COMMANDS=ON -DCMAKE_BUILD_TYPE=Debug \
+      > "$work.configure-debug.log" 2>&1 || { cat "$work.configure-debug.log"; exit 1; }
+cmd=$(plugin_command "$work/example-debug")
+grep -qE -- ' -O[1-3s]? ' <<< "$cmd" && fail "a Debug build of the plugin was optimised: $cmd"
+grep -q -- ' -g ' <<< "$cmd" || fail "a Debug build of the plugin lost -g: $cmd"
 # The installed qdrun finds the installed plugins next to itself and the new one on QD_PLUGIN_PATH.
 sed 's/^type = "iso"/type = "half-step"/; /^sigma/d' "$src/../../experiments/smoke/iso.toml" > "$work/exp.toml"
 listing=$(QD_PLUGIN_PATH="$work/example-build" "$work/prefix/bin/qdrun" --list)
