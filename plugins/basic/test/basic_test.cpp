@@ -96,3 +96,21 @@ TEST(NoRepresentation, Conforms) {
       qd::testing::make_dataset(qd::testing::random_matrix(10, 7, 3)));
   EXPECT_TRUE(report.ok()) << report;
 }
+
+TEST(BasicMutators, Conform) {
+  const PolicyShape shape(3, {4}, 2);  // P = 26
+  BuildContext with_policy;
+  with_policy.policy = &shape;
+  qd::testing::MutatorCase c;
+  c.params = shape.param_count();
+  const std::pair<const char*, qd::testing::MutatorFactory> mutators[] = {
+      {"iso", [] { return std::make_unique<IsoMutator>(defaults_of(kIsoParams, "mutator"), BuildContext{}); }},
+      {"uniform",
+       [] { return std::make_unique<UniformSampler>(defaults_of(kUniformParams, "mutator"), BuildContext{}); }},
+      {"glorot", [&] { return std::make_unique<GlorotSampler>(Config("mutator"), with_policy); }},
+  };
+  for (const auto& [name, make] : mutators) {
+    const qd::testing::Report report = qd::testing::check_mutator(make, c);
+    EXPECT_TRUE(report.ok()) << name << ": " << report;
+  }
+}

@@ -3,6 +3,7 @@
 #include "dde_mutator.hpp"
 
 #include <qd/errors.hpp>
+#include <qd/testing/conformance.hpp>
 #include <qd/testing/linear_model.hpp>
 
 #include <gtest/gtest.h>
@@ -335,6 +336,20 @@ TEST(DdeMutatorInfo, NeedsLatentAndNamesTheArmMetric) {
   DdeMutator m(base_config(), bctx);
   EXPECT_TRUE(m.needs_latent());
   EXPECT_EQ(m.metric_names(), (std::vector<std::string>{"arm"}));
+}
+
+// The shipped conformance checks (qd/testing) for both bandit updates, over enough iterations for
+// the UCB choice to follow the random first arm (with a random linear model as the representation).
+TEST(DdeMutatorInfo, Conforms) {
+  for (const char* update : {"reference", "ucb1"}) {
+    qd::Config cfg = base_config();
+    cfg.set_string("update", update, "test");
+    qd::testing::MutatorCase c;
+    c.iterations = 5;
+    const qd::testing::Report report =
+        qd::testing::check_mutator([&] { return std::make_unique<DdeMutator>(cfg, qd::BuildContext{}); }, c);
+    EXPECT_TRUE(report.ok()) << update << ": " << report;
+  }
 }
 
 }  // namespace

@@ -2,6 +2,8 @@
 // own tests are in plugins/common/line_dd_ops/test.
 #include "iso_line_dd_mutator.hpp"
 
+#include <qd/testing/conformance.hpp>
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -96,6 +98,17 @@ TEST(LineDDOperator, MeanAndCovarianceMatchTheFormula) {
   RecordProperty("worst_standard_errors", std::to_string(worst));
   // The line term is visible: along d the variance is iso² + line²|d|², 5.2x the isotropic part.
   EXPECT_NEAR(sigma(0, 0), 1e-4 + 4e-4, 1e-15);
+}
+
+// The shipped conformance checks (qd/testing), in both pairing modes.
+TEST(LineDDMutator, Conforms) {
+  for (const char* pairing : {"reference", "swap"}) {
+    qd::Config cfg = qd::defaults_of(qd::line_dd::kIsoLineDdParams, "mutator");
+    cfg.set_string("pairing", pairing, "test");
+    const qd::testing::Report report = qd::testing::check_mutator(
+        [&] { return std::make_unique<qd::line_dd::IsoLineDdMutator>(cfg, qd::BuildContext{}); });
+    EXPECT_TRUE(report.ok()) << pairing << ": " << report;
+  }
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <qd/dataset.hpp>
 #include <qd/errors.hpp>
 #include <qd/rng.hpp>
+#include <qd/testing/conformance.hpp>
 #include <qd/testing/elites.hpp>
 #include <qd/testing/linear_model.hpp>
 
@@ -484,6 +485,26 @@ TEST(PomsTest, NoJacobianStepDistribution) {
     EXPECT_LT(std::abs(u.mean()), 5.0 / std::sqrt(dn));
     EXPECT_LT(std::abs(u.square().mean() - 1.0), 5.0 * std::sqrt(2.0 / dn));
   }
+}
+
+// The shipped conformance checks (qd/testing) for both mutators and both thresholds, with the
+// non-linear test model as the representation.
+TEST(PomsTest, Conforms) {
+  const EluModel model(3, 5, 12);
+  qd::testing::MutatorCase c;
+  c.params = 12;
+  c.representation = &model;
+  for (const char* threshold : {"archive-mean", "refreshed"}) {
+    qd::Config cfg = qd::defaults_of(qd::poms::kPomsParams, "mutator");
+    cfg.set_string("threshold", threshold, "test");
+    const qd::testing::Report report =
+        qd::testing::check_mutator([&] { return std::make_unique<PomsMutator>(cfg, qd::BuildContext{}); }, c);
+    EXPECT_TRUE(report.ok()) << threshold << ": " << report;
+  }
+  const qd::Config cfg = qd::defaults_of(qd::poms::kNoJacobianParams, "mutator");
+  const qd::testing::Report report =
+      qd::testing::check_mutator([&] { return std::make_unique<NoJacobianMutator>(cfg, qd::BuildContext{}); }, c);
+  EXPECT_TRUE(report.ok()) << "poms-no-jacobian: " << report;
 }
 
 }  // namespace

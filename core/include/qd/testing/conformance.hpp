@@ -29,10 +29,17 @@
 //    reconstruction_errors with ‖θ − Dec(Enc(θ))‖; two fresh models fitted alike save the same
 //    state; save/load round-trips bit for bit (outputs and the saved blob) and a truncated blob
 //    throws qd::StateError; the const members give the same results from several threads at once.
-//  * check_mutator: offspring are count × P and finite, latent rows and has_latent have the
-//    right sizes, metrics match metric_names(), the mixing ratio is in [0, 1] or NaN; two fresh
-//    mutators given the same inputs and Rng seed (begin_loop, mutate, feedback, ...) agree bit for
-//    bit; save/load carries the state over.
+//  * check_mutator: offspring are count × P and finite, has_latent has count entries of 0 or 1
+//    and marks finite latent rows, metrics match metric_names(), the mixing ratio is in [0, 1] or
+//    NaN; two fresh mutators given the same inputs and Rng seeds (begin_loop, then mutate and
+//    feedback for a few iterations) agree bit for bit; a state saved at the loop boundary and
+//    loaded into a fresh mutator saves the same blob and gives the same next loop; a truncated
+//    state throws qd::StateError. Every input has a default (random parents, an archive of them,
+//    no latent space or a LinearModel for a mutator that needs one); MutatorCase overrides them.
+//
+// Helpers for your own tests: random_matrix, make_dataset, random_policies + rollout_all (traces
+// of random policies), trace_difference; qd/testing/linear_model.hpp (a linear latent model) and
+// qd/testing/elites.hpp (an archive given row by row).
 //
 // Build the test with the core's flags (CMake: qd_use_core_flags(<test target>), which
 // qd_add_plugin() applies to plugins): Eigen objects cross between the test and libqd_core, and
@@ -46,9 +53,12 @@
 #include <qd/descriptor.hpp>
 #include <qd/environment.hpp>
 #include <qd/errors.hpp>
+#include <qd/mutator.hpp>
 #include <qd/policy.hpp>
 #include <qd/representation.hpp>
 #include <qd/rng.hpp>
+#include <qd/testing/elites.hpp>
+#include <qd/testing/linear_model.hpp>
 #include <qd/types.hpp>
 #include <qd/version.hpp>
 
@@ -63,6 +73,7 @@
 #include <memory>
 #include <ostream>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <utility>
@@ -296,6 +307,29 @@ inline Trace sentinel_trace() {
 
 inline bool series_ok(const Series& s) {
   return s.cols >= 0 && (s.cols == 0 ? s.data.empty() : s.data.size() % static_cast<std::size_t>(s.cols) == 0);
+}
+
+// What save() writes.
+template <class T>
+std::string saved(const T& c) {
+  std::ostringstream out;
+  c.save(out);
+  return out.str();
+}
+
+// load() of the first half of a saved state must throw qd::StateError (make() gives a fresh object).
+template <class Make>
+void expect_truncated_state_refused(Report& r, const std::string& blob, const Make& make) {
+  if (blob.size() < 2) return;
+  try {
+    std::istringstream in(blob.substr(0, blob.size() / 2));
+    make()->load(in);
+    r.fail("load() of the first half of a saved state did not throw qd::StateError");
+  } catch (const StateError&) {
+  } catch (const std::exception& e) {
+    r.fail(std::string("load() of the first half of a saved state threw another exception than qd::StateError: ") +
+           e.what());
+  }
 }
 
 }  // namespace detail
@@ -537,12 +571,6 @@ inline std::string difference(const RepresentationOutputs& a, const Representati
   return "";
 }
 
-inline std::string saved(const Representation& rep) {
-  std::ostringstream out;
-  rep.save(out);
-  return out.str();
-}
-
 }  // namespace detail
 
 // `make` returns a fresh, unfitted model (the factory's result for your configuration); `data`
@@ -579,17 +607,7 @@ inline Report check_representation(const RepresentationFactory& make, const Data
   });
   if (loaded_ok)
     r.expect(detail::saved(*loaded) == blob, "save() after load() gives another state than the one loaded");
-  if (!blob.empty()) {
-    try {
-      std::istringstream in(blob.substr(0, blob.size() / 2));
-      make()->load(in);
-      r.fail("load() of the first half of a saved state did not throw qd::StateError");
-    } catch (const StateError&) {
-    } catch (const std::exception& e) {
-      r.fail(std::string("load() of the first half of a saved state threw another exception than qd::StateError: ") +
-             e.what());
-    }
-  }
+  detail::expect_truncated_state_refused(r, blob, make);
   if (ld == 0 || !r.ok()) return r;  // no latent space: encode, decode, ... must not be called
 
   const auto p = static_cast<Eigen::Index>(data.param_count());
@@ -666,6 +684,231 @@ inline Report check_representation(const RepresentationFactory& make, const Data
       const std::string d = detail::difference(out, c);
       if (!r.expect(d.empty(), d + "() called from several threads at once differs from one thread's")) break;
     }
+  return r;
+}
+
+// ---- Mutator ----------------------------------------------------------------------------------
+
+using MutatorFactory = std::function<std::unique_ptr<Mutator>()>;
+
+// What the mutator is given. Every field has a default, so check_mutator(make) alone runs.
+struct MutatorCase {
+  // The selected parents, one row per offspring (the core selects `count` of them). Empty: `count`
+  // rows of `params` values drawn from U(-1, 1). Mutators whose uses_parents() is false get none.
+  Parents parents;
+  std::size_t count = 16;
+  std::size_t params = 12;
+  // The representation (not owned). Null: none with a latent space, or, for a mutator whose
+  // needs_latent() is true, a LinearModel::random() with min(3, params - 1) latent dimensions.
+  const Representation* representation = nullptr;
+  // The archive (not owned). Null: the parents as elites, parent i in cell i.
+  const ArchiveView* archive = nullptr;
+  // The dataset begin_loop() sees (not owned). Null: the parents' parameters.
+  const Dataset* dataset = nullptr;
+  int loop = 1;
+  int iterations = 3;  // rounds of mutate() and feedback() per loop
+  std::uint64_t seed = 1;
+};
+
+namespace detail {
+
+// The representation of a run without a latent model: latent_size() 0, and the rest must not be
+// called (they throw, which check_mutator reports).
+class NoLatentSpace final : public Representation {
+ public:
+  int latent_size() const noexcept override { return 0; }
+  FitReport fit(const Dataset&, const FitContext&) override { return {}; }
+  void encode(const Matrix&, Matrix&) const override { misuse("encode"); }
+  void decode(const Matrix&, Matrix&) const override { misuse("decode"); }
+  void decoder_jacobians(const Matrix&, std::vector<Matrix>&) const override { misuse("decoder_jacobians"); }
+  void save(std::ostream&) const override {}
+  void load(std::istream&) override {}
+
+ private:
+  [[noreturn]] static void misuse(const char* what) {
+    throw std::logic_error(std::string(what) + "() called on a representation whose latent_size() is 0");
+  }
+};
+
+// "" when two batches of offspring are identical, else the first member that differs. Latent rows
+// count only where has_latent is set (the others are whatever Offspring::reset left).
+inline std::string difference(const Offspring& a, const Offspring& b) {
+  if (!same_bits(a.theta, b.theta)) return "theta";
+  if (a.has_latent != b.has_latent) return "has_latent";
+  for (std::size_t i = 0; i < a.has_latent.size(); ++i) {
+    const auto row = static_cast<Eigen::Index>(i);
+    if (a.has_latent[i] && (a.latent.cols() != b.latent.cols() || row >= a.latent.rows() || row >= b.latent.rows() ||
+                            !same_bits(RowVector(a.latent.row(row)), RowVector(b.latent.row(row)))))
+      return "latent";
+  }
+  if (!same_bits(a.mixing_ratio, b.mixing_ratio)) return "mixing_ratio";
+  if (!same_bits(a.metrics, b.metrics)) return "metrics";
+  return "";
+}
+
+// The contract of one batch of offspring.
+inline void check_offspring(Report& r, const Offspring& out, std::size_t count, Eigen::Index p, int ld,
+                            std::size_t metrics, const std::string& where) {
+  const auto n = static_cast<Eigen::Index>(count);
+  if (!r.expect(out.theta.rows() == n && out.theta.cols() == p,
+                where + "theta is " + shape(out.theta.rows(), out.theta.cols()) + ", not count x P = " + shape(n, p)))
+    return;
+  r.expect(out.theta.allFinite(), where + "theta has non-finite values (from finite parents)");
+  r.expect(out.has_latent.size() == count, where + "has_latent has " + std::to_string(out.has_latent.size()) +
+                                               " entries, not count = " + std::to_string(count));
+  Rows bad_flag, bad_latent;
+  for (std::size_t i = 0; i < std::min(count, out.has_latent.size()); ++i) {
+    if (out.has_latent[i] > 1) bad_flag.add(i, std::to_string(out.has_latent[i]));
+    if (out.has_latent[i] == 0) continue;
+    const auto row = static_cast<Eigen::Index>(i);
+    if (ld == 0 || out.latent.rows() <= row || out.latent.cols() != ld || !out.latent.row(row).allFinite())
+      bad_latent.add(i);
+  }
+  bad_flag.report(r, where + "has_latent entries other than 0 and 1");
+  bad_latent.report(
+      r, where + "offspring marked has_latent without a finite latent row of LD = " + std::to_string(ld) + " values");
+  r.expect(out.metrics.size() == metrics,
+           where + std::to_string(out.metrics.size()) + " metrics for " + std::to_string(metrics) + " metric_names()");
+  r.expect(all_finite(out.metrics), where + "non-finite metrics");
+  r.expect(std::isnan(out.mixing_ratio) || (out.mixing_ratio >= 0.0 && out.mixing_ratio <= 1.0),
+           where + "mixing ratio " + str(out.mixing_ratio) + " is neither in [0, 1] nor NaN");
+}
+
+}  // namespace detail
+
+// `make` returns a fresh mutator (the factory's result for your configuration). Runs two of them
+// side by side through begin_loop, `iterations` × (mutate, feedback) with scripted outcomes, then
+// saves one, loads the state into a third, and runs the next loop's begin_loop and mutate on both.
+inline Report check_mutator(const MutatorFactory& make, MutatorCase c = {}) {
+  Report r;
+  if (!detail::same_build(r)) return r;
+  std::unique_ptr<Mutator> a, b;
+  if (!detail::call(r, "making the mutator", [&] {
+        a = make();
+        b = make();
+      }))
+    return r;
+  if (!r.expect(a && b, "the factory returned null")) return r;
+  const bool uses_parents = a->uses_parents(), needs_latent = a->needs_latent();
+  std::vector<std::string> names;
+  if (!detail::call(r, "metric_names()", [&] { names = a->metric_names(); })) return r;
+
+  // The case's defaults.
+  if (c.parents.theta.size() == 0)
+    c.parents.theta = random_matrix(static_cast<Eigen::Index>(c.count), static_cast<Eigen::Index>(c.params), c.seed);
+  c.count = static_cast<std::size_t>(c.parents.theta.rows());
+  const Eigen::Index p = c.parents.theta.cols();
+  if (!r.expect(c.count > 0 && p > 0, "MutatorCase: no parents")) return r;
+  std::unique_ptr<Representation> own_representation;
+  if (!c.representation) {
+    if (needs_latent)
+      own_representation = LinearModel::random(
+          static_cast<int>(std::min<Eigen::Index>(3, std::max<Eigen::Index>(p - 1, 1))), static_cast<int>(p), c.seed);
+    else
+      own_representation = std::make_unique<detail::NoLatentSpace>();
+    c.representation = own_representation.get();
+  }
+  const int ld = c.representation->latent_size();
+  if (!r.expect(!needs_latent || ld > 0,
+                "MutatorCase: needs_latent() is true but the representation has no latent space"))
+    return r;
+  if (c.parents.recn_error.size() == 0) {
+    c.parents.recn_error = Vector::Zero(c.parents.theta.rows());
+    if (ld > 0 && !detail::call(r, "reconstruction_errors() of the case's representation", [&] {
+          c.representation->reconstruction_errors(c.parents.theta, c.parents.recn_error);
+        }))
+      return r;
+  }
+  if (c.parents.cells.empty())
+    for (std::size_t i = 0; i < c.count; ++i) c.parents.cells.push_back(static_cast<std::int64_t>(i));
+  std::unique_ptr<Elites> own_archive;
+  if (!c.archive) {
+    own_archive = std::make_unique<Elites>(static_cast<std::int64_t>(2 * c.count), static_cast<std::size_t>(p), 1);
+    for (std::size_t i = 0; i < c.count; ++i) {
+      const auto row = static_cast<Eigen::Index>(i);
+      own_archive->add(static_cast<std::int64_t>(i),
+                       std::vector<double>(c.parents.theta.row(row).data(), c.parents.theta.row(row).data() + p),
+                       c.parents.recn_error(row));
+    }
+    c.archive = own_archive.get();
+  }
+  std::unique_ptr<Dataset> own_dataset;
+  if (!c.dataset) {
+    own_dataset = std::make_unique<Dataset>(make_dataset(c.parents.theta));
+    c.dataset = own_dataset.get();
+  }
+
+  // Iteration `it` of `loop` on mutator m, as the core runs it.
+  const Parents none;
+  auto mutate = [&](Mutator& m, int loop, int it, Offspring& out) {
+    Rng rng(c.seed, Stream::kMutation, static_cast<std::uint64_t>(loop), static_cast<std::uint64_t>(it));
+    MutateContext ctx;
+    ctx.loop = loop;
+    ctx.iteration = it;
+    ctx.rng = &rng;
+    ctx.representation = c.representation;
+    ctx.archive = c.archive;
+    out.reset(c.count, static_cast<std::size_t>(p), static_cast<std::size_t>(ld));
+    m.mutate(uses_parents ? c.parents : none, c.count, ctx, out);
+  };
+  const LoopContext loop_context{c.loop, c.archive, c.dataset, c.representation};
+  if (!detail::call(r, "begin_loop()", [&] {
+        a->begin_loop(loop_context);
+        b->begin_loop(loop_context);
+      }))
+    return r;
+  std::vector<Insertion> outcomes(c.count);
+  for (std::size_t i = 0; i < c.count; ++i) outcomes[i] = static_cast<Insertion>(i % 3);  // added, replaced, rejected
+  for (int it = 0; it < c.iterations; ++it) {
+    const std::string where = "loop " + std::to_string(c.loop) + " iteration " + std::to_string(it) + ": ";
+    Offspring out_a, out_b;
+    if (!detail::call(r, where + "mutate()", [&] {
+          mutate(*a, c.loop, it, out_a);
+          mutate(*b, c.loop, it, out_b);
+        }))
+      return r;
+    detail::check_offspring(r, out_a, c.count, p, ld, names.size(), where);
+    const std::string d = detail::difference(out_a, out_b);
+    r.expect(d.empty(), where + "two fresh mutators given the same inputs and Rng seed differ in " + d);
+    Feedback fb;
+    fb.loop = c.loop;
+    fb.iteration = it;
+    fb.offspring = c.count;
+    fb.added = (c.count + 2) / 3;
+    fb.replaced = (c.count + 1) / 3;
+    fb.rejected = c.count / 3;
+    fb.outcomes = &outcomes;
+    if (!detail::call(r, where + "feedback()", [&] {
+          a->feedback(fb);
+          b->feedback(fb);
+        }))
+      return r;
+    if (!r.ok()) return r;
+  }
+
+  // A checkpoint at the loop boundary: the loaded mutator goes on exactly as the saved one.
+  std::string blob;
+  std::unique_ptr<Mutator> loaded;
+  if (!detail::call(r, "save() and load() into a fresh mutator", [&] {
+        blob = detail::saved(*a);
+        loaded = make();
+        std::istringstream in(blob);
+        loaded->load(in);
+      }))
+    return r;
+  r.expect(detail::saved(*loaded) == blob, "save() after load() gives another state than the one loaded");
+  const LoopContext next{c.loop + 1, c.archive, c.dataset, c.representation};
+  Offspring out_a, out_loaded;
+  if (detail::call(r, "begin_loop() and mutate() after load()", [&] {
+        a->begin_loop(next);
+        loaded->begin_loop(next);
+        mutate(*a, c.loop + 1, 0, out_a);
+        mutate(*loaded, c.loop + 1, 0, out_loaded);
+      })) {
+    const std::string d = detail::difference(out_a, out_loaded);
+    r.expect(d.empty(), "after save() and load(), the loaded mutator's next offspring differ in " + d);
+  }
+  detail::expect_truncated_state_refused(r, blob, make);
   return r;
 }
 
