@@ -21,9 +21,9 @@
 //    ranges give identical traces; a second run repeats them; a range [begin, end) fills exactly
 //    those rows (the others are untouched) and equals the same rows of the whole batch; statuses
 //    are valid, failed ones carry a message; the trajectories of kOk traces are finite.
-//  * check_descriptor: the grid is consistent (per-dimension sizes, cells = product of the shape
-//    unless told otherwise) and fixed; cells lie in [0, cells) or are -1; described values are
-//    finite; results repeat and do not depend on threads or on how the traces are split.
+//  * check_descriptor: the grid is consistent (per-dimension sizes and bounds, cells = product of
+//    the shape, as the core requires) and fixed; cells lie in [0, cells) or are -1; described
+//    values are finite; results repeat and do not depend on threads or on how the traces are split.
 //  * check_representation: after fit() on your dataset, encode/decode give N × LD and N × P finite
 //    results; decoder_jacobians agree with central differences of decode; decoder_vjp with vᵀJ;
 //    reconstruction_errors with ‖θ − Dec(Enc(θ))‖; two fresh models fitted alike save the same
@@ -427,9 +427,6 @@ inline Report check_environment(const Environment& env, const EnvironmentOptions
 
 struct DescriptorOptions {
   int threads = 3;
-  // grid().cells must equal the product of grid().shape; false for a descriptor that documents
-  // another numbering.
-  bool cells_are_product = true;
   // At least one of the traces must get a cell (>= 0).
   bool require_described = true;
 };
@@ -460,9 +457,9 @@ inline Report check_descriptor(const Descriptor& d, const std::vector<Trace>& tr
                "grid() range of dimension " + std::to_string(k) + " is [" + detail::str(g.lower[k]) + ", " +
                    detail::str(g.upper[k]) + "]");
   }
-  if (o.cells_are_product)
-    r.expect(g.cells == product, "grid().cells = " + std::to_string(g.cells) + " but the product of grid().shape is " +
-                                     std::to_string(product));
+  r.expect(g.cells == product, "grid().cells = " + std::to_string(g.cells) + " but the product of grid().shape is " +
+                                   std::to_string(product) +
+                                   " (cells are row-major over the shape; the core refuses such a grid)");
   r.expect(again.shape == g.shape && again.names == g.names && again.cells == g.cells &&
                detail::same_bits(again.lower, g.lower) && detail::same_bits(again.upper, g.upper),
            "grid() changed between two calls");
