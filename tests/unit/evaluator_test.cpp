@@ -1,17 +1,66 @@
 // The evaluator gives identical results whatever the number of workers.
 #include "runtime/evaluator.hpp"
-#include "arm.hpp"
 #include "runtime/process_evaluator.hpp"
 
+#include <qd/descriptor.hpp>
+#include <qd/environment.hpp>
+#include <qd/policy.hpp>
 #include <qd/rng.hpp>
 
 #include <gtest/gtest.h>
 
 #include <signal.h>
 
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
 using namespace qd;
 
 namespace {
+// A scripted environment, so the core's tests need no plugin: the policy sees the observation
+// (step / 10, 0, ..., 0) for up to 50 steps and its first action is recorded; an episode ends
+// early when that action leaves [-0.9, 0.9], and a non-finite action is kInvalidAction.
+class ScriptedEnvironment final : public Environment {
+ public:
+  EnvironmentInfo info() const override { return {6, 3, 50, "scripted"}; }
+  void rollout(const RolloutBatch& batch, Trace* traces) const override {
+    Policy policy(*batch.shape);
+    std::vector<float> obs(6, 0.0f);
+    for (std::size_t i = batch.begin; i < batch.end; ++i) {
+      Trace& t = traces[i];
+      t.main.reset(1);
+      policy.load(batch.params->row(static_cast<Eigen::Index>(i)).data());
+      for (int step = 0; step < 50; ++step) {
+        obs[0] = static_cast<float>(step) / 10.0f;
+        const double a = policy.act(obs.data())[0];
+        if (!std::isfinite(a)) {
+          t.status = EvalStatus::kInvalidAction;
+          t.message = "non-finite action at step " + std::to_string(step);
+          break;
+        }
+        t.main.push(a);
+        t.fitness -= a * a;
+        t.steps = step + 1;
+        if (std::abs(a) > 0.9) break;
+      }
+    }
+  }
+};
+
+// Bins the last recorded action over [-1, 1] into 50 cells.
+class ScriptedDescriptor final : public Descriptor {
+ public:
+  GridSpec grid() const override { return {{50}, {"action"}, {-1.0}, {1.0}, 50}; }
+  void describe(const Trace* traces, std::size_t n, std::int64_t* cells, double* values) const override {
+    for (std::size_t i = 0; i < n; ++i) {
+      const double a = traces[i].main.last()[0];
+      cells[i] = static_cast<std::int64_t>(std::clamp(std::floor((a + 1.0) * 25.0), 0.0, 49.0));
+      values[i] = a;
+    }
+  }
+};
 // Every per-offspring field of two evaluations is identical.
 void expect_same(const runtime::Evaluations& a, const runtime::Evaluations& b) {
   EXPECT_EQ(a.cells, b.cells);
@@ -31,9 +80,8 @@ Matrix random_params(const PolicyShape& shape, Eigen::Index rows, std::uint64_t 
 }  // namespace
 
 TEST(Evaluator, OneAndThreeWorkersGiveIdenticalTracesAndCells) {
-  Config ec = defaults_of(arm::kArmParams, "environment");
-  arm::ArmEnvironment env(ec, BuildContext{});
-  arm::EndpointDescriptor desc(defaults_of(arm::kEndpointParams, "descriptor"), BuildContext{});
+  const ScriptedEnvironment env;
+  const ScriptedDescriptor desc;
   const PolicyShape shape(6, {8, 8}, 3);
   Matrix params = random_params(shape, 97, 11);
   params(5, 3) = std::nan("");  // a NaN action must give an invalid evaluation, not a crash
@@ -47,25 +95,25 @@ TEST(Evaluator, OneAndThreeWorkersGiveIdenticalTracesAndCells) {
   EXPECT_EQ(a.cells[5], -1);
 }
 
-TEST(Evaluator, ArmDescriptorOfAStretchedArm) {
-  // All-zero parameters: zero actions, the arm stays stretched along +x, end effector (1, 0).
-  arm::ArmEnvironment env(defaults_of(arm::kArmParams, "environment"), BuildContext{});
-  arm::EndpointDescriptor desc(defaults_of(arm::kEndpointParams, "descriptor"), BuildContext{});
+// The scripted answer: an all-zero policy acts 0 for 50 steps, cell 25, fitness 0.
+TEST(Evaluator, ScriptedEnvironmentKnownAnswer) {
+  const ScriptedEnvironment env;
+  const ScriptedDescriptor desc;
   const PolicyShape shape(6, {8, 8}, 3);
   Matrix params = Matrix::Zero(1, static_cast<Eigen::Index>(shape.param_count()));
   std::vector<std::uint64_t> seeds(1, 0);
   runtime::ThreadEvaluator ev(env, desc, shape, 1);
   runtime::Evaluations out;
   ev.evaluate(params, seeds, out);
-  // x = 1 -> bin clipped to 49, y = 0 -> bin 25: cell 25 * 50 + 49.
-  EXPECT_EQ(out.cells[0], 25 * 50 + 49);
+  EXPECT_EQ(out.cells[0], 25);
   EXPECT_EQ(out.steps[0], 50);
+  EXPECT_EQ(out.fitness[0], 0.0);
 }
 
 // Worker processes give exactly the thread backend's results, whatever the chunking.
 TEST(Evaluator, ProcessesEqualThreads) {
-  arm::ArmEnvironment env(defaults_of(arm::kArmParams, "environment"), BuildContext{});
-  arm::EndpointDescriptor desc(defaults_of(arm::kEndpointParams, "descriptor"), BuildContext{});
+  const ScriptedEnvironment env;
+  const ScriptedDescriptor desc;
   const PolicyShape shape(6, {8, 8}, 3);
   Matrix params = random_params(shape, 131, 12);
   params(7, 2) = std::nan("");
@@ -84,8 +132,8 @@ TEST(Evaluator, ProcessesEqualThreads) {
 
 // A worker process that dies gives a WorkerFailure naming it, not a hang or a crash.
 TEST(Evaluator, DeadWorkerProcessIsReported) {
-  arm::ArmEnvironment env(defaults_of(arm::kArmParams, "environment"), BuildContext{});
-  arm::EndpointDescriptor desc(defaults_of(arm::kEndpointParams, "descriptor"), BuildContext{});
+  const ScriptedEnvironment env;
+  const ScriptedDescriptor desc;
   const PolicyShape shape(6, {8, 8}, 3);
   Matrix params = Matrix::Zero(16, static_cast<Eigen::Index>(shape.param_count()));
   std::vector<std::uint64_t> seeds(16, 0);

@@ -3,12 +3,12 @@
 
 #include <qd/errors.hpp>
 #include <qd/rng.hpp>
+#include <qd/testing/conformance.hpp>
 
 #include "bipedal.hpp"
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -436,15 +436,6 @@ TEST(BipedalKickerBall, BinEdges) {
 
 // ---- Environment component: determinism and threads -----------------------------------------------
 
-void expect_same(const qd::Trace& a, const qd::Trace& b) {
-  EXPECT_EQ(a.status, b.status);
-  EXPECT_EQ(a.steps, b.steps);
-  EXPECT_EQ(a.events, b.events);
-  EXPECT_EQ(a.main.data, b.main.data);
-  EXPECT_EQ(a.aux.data, b.aux.data);
-  EXPECT_EQ(std::memcmp(&a.fitness, &b.fitness, sizeof(double)), 0);
-}
-
 void check_determinism(Task task) {
   const qd::Config cfg = task == Task::kWalker ? qd::defaults_of(qd::bipedal::kWalkerParams, "environment")
                                                : qd::defaults_of(qd::bipedal::kKickerParams, "environment");
@@ -480,9 +471,9 @@ void check_determinism(Task task) {
   for (int i = 0; i < kN; ++i) {
     SCOPED_TRACE(i);
     EXPECT_GT(first[i].steps, 0);
-    expect_same(first[i], second[i]);
-    expect_same(first[i], forward[i]);
-    expect_same(first[i], backward[i]);
+    EXPECT_EQ(qd::testing::trace_difference(first[i], second[i]), "");
+    EXPECT_EQ(qd::testing::trace_difference(first[i], forward[i]), "");
+    EXPECT_EQ(qd::testing::trace_difference(first[i], backward[i]), "");
   }
 }
 
@@ -491,6 +482,35 @@ TEST(BipedalWalker, DeterministicAcrossRunsAndThreads) {
 }
 TEST(BipedalKicker, DeterministicAcrossRunsAndThreads) {
   check_determinism(Task::kKicker);
+}
+
+// The shipped conformance checks (qd/testing), for both environments and all descriptor variants.
+TEST(BipedalEnvironment, Conforms) {
+  const qd::bipedal::WalkerEnvironment walker(qd::defaults_of(qd::bipedal::kWalkerParams, "environment"), {});
+  const qd::bipedal::KickerEnvironment kicker(qd::defaults_of(qd::bipedal::kKickerParams, "environment"), {});
+  qd::testing::EnvironmentOptions options;
+  options.hidden = {32, 32};
+  for (const qd::Environment* env :
+       {static_cast<const qd::Environment*>(&walker), static_cast<const qd::Environment*>(&kicker)}) {
+    const qd::testing::Report report = qd::testing::check_environment(*env, options);
+    EXPECT_TRUE(report.ok()) << env->info().default_descriptor << ": " << report;
+  }
+}
+
+TEST(BipedalDescriptors, Conform) {
+  const qd::bipedal::WalkerEnvironment walker(qd::defaults_of(qd::bipedal::kWalkerParams, "environment"), {});
+  const auto walks = qd::testing::rollout_all(walker, qd::testing::random_policies(walker, 24, {32, 32}));
+  for (const char* bins : {"reference", "corrected"}) {
+    qd::Config cfg = qd::defaults_of(qd::bipedal::kWalkerGaitParams, "descriptor");
+    cfg.set_string("contact_bins", bins, "test");
+    const qd::testing::Report report = qd::testing::check_descriptor(qd::bipedal::WalkerGaitDescriptor(cfg, {}), walks);
+    EXPECT_TRUE(report.ok()) << bins << ": " << report;
+  }
+  const qd::bipedal::KickerEnvironment kicker(qd::defaults_of(qd::bipedal::kKickerParams, "environment"), {});
+  const auto kicks = qd::testing::rollout_all(kicker, qd::testing::random_policies(kicker, 24, {32, 32}));
+  const qd::testing::Report report =
+      qd::testing::check_descriptor(qd::bipedal::KickerBallDescriptor(qd::Config("descriptor"), {}), kicks);
+  EXPECT_TRUE(report.ok()) << report;
 }
 
 TEST(BipedalEnvironment, InfoAndSvg) {

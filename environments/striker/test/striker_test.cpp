@@ -5,6 +5,7 @@
 #include "striker_sim.hpp"
 
 #include <qd/rng.hpp>
+#include <qd/testing/conformance.hpp>
 
 #include <gtest/gtest.h>
 
@@ -66,16 +67,6 @@ qd::Trace synthetic_trace(std::vector<int> events, double x, double y) {
   trace.main.push(x, y);
   trace.events = std::move(events);
   return trace;
-}
-
-bool bitwise_equal(const std::vector<double>& a, const std::vector<double>& b) {
-  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0);
-}
-
-bool traces_identical(const qd::Trace& a, const qd::Trace& b) {
-  return a.status == b.status && a.steps == b.steps && std::memcmp(&a.fitness, &b.fitness, sizeof(double)) == 0 &&
-         a.main.cols == b.main.cols && a.aux.cols == b.aux.cols && bitwise_equal(a.main.data, b.main.data) &&
-         bitwise_equal(a.aux.data, b.aux.data) && a.events == b.events && a.message == b.message;
 }
 
 // ---- Policy and plugin surface -------------------------------------------------------------
@@ -302,7 +293,7 @@ void check_mix_scale(qd::striker::MixScaleElements elements, const std::array<bo
   std::vector<Observation> plain_obs, mix_obs;
   const qd::Trace plain_trace = run(theta, {}, &plain_obs);
   const qd::Trace mix_trace = run(theta, mix, &mix_obs);
-  EXPECT_TRUE(traces_identical(plain_trace, mix_trace));
+  EXPECT_EQ(qd::testing::trace_difference(plain_trace, mix_trace), "");
   EXPECT_GE(plain_trace.events.size(), 2u);
   ASSERT_EQ(plain_obs.size(), mix_obs.size());
   ASSERT_GT(plain_obs.size(), 500u);
@@ -419,11 +410,37 @@ TEST(StrikerEpisode, DeterministicAcrossRepeatsAndThreads) {
   b.join();
   int moved = 0;
   for (int i = 0; i < kRows; ++i) {
-    EXPECT_TRUE(traces_identical(first[static_cast<std::size_t>(i)], second[static_cast<std::size_t>(i)])) << i;
-    EXPECT_TRUE(traces_identical(first[static_cast<std::size_t>(i)], threaded[static_cast<std::size_t>(i)])) << i;
+    EXPECT_EQ(qd::testing::trace_difference(first[static_cast<std::size_t>(i)], second[static_cast<std::size_t>(i)]),
+              "")
+        << i;
+    EXPECT_EQ(qd::testing::trace_difference(first[static_cast<std::size_t>(i)], threaded[static_cast<std::size_t>(i)]),
+              "")
+        << i;
     moved += !first[static_cast<std::size_t>(i)].events.empty();
   }
   EXPECT_GE(moved, 3);
+}
+
+// ---- Conformance (qd/testing) ---------------------------------------------------------------
+
+TEST(StrikerEnvironment, Conforms) {
+  const StrikerEnvironment env(qd::defaults_of(qd::striker::kEnvironmentParams, "environment"), {});
+  qd::testing::EnvironmentOptions options;
+  options.hidden = {32, 32};
+  const qd::testing::Report report = qd::testing::check_environment(env, options);
+  EXPECT_TRUE(report.ok()) << report;
+}
+
+TEST(StrikerDescriptor, Conforms) {
+  const StrikerEnvironment env(Options{});
+  qd::testing::PolicyBatch batch = qd::testing::random_policies(env, 40, {32, 32});
+  // Random policies rarely reach the puck: add some that hit it, so traces with contacts are described.
+  const std::vector<double> hits[] = {constant_policy(0, 0.4, 0), constant_policy(0.05, 0.45, 0.5),
+                                      constant_policy(-0.15, 0.7, 0.5), constant_policy(0.2, 1.0, 0.5)};
+  for (int i = 0; i < 4; ++i) batch.params.row(i) = Eigen::Map<const qd::RowVector>(hits[i].data(), 1635);
+  const qd::testing::Report report =
+      qd::testing::check_descriptor(ContactGridDescriptor(), qd::testing::rollout_all(env, batch));
+  EXPECT_TRUE(report.ok()) << report;
 }
 
 // ---- Misc -----------------------------------------------------------------------------------

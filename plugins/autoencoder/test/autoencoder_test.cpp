@@ -2,6 +2,7 @@
 
 #include <qd/errors.hpp>
 #include <qd/policy.hpp>
+#include <qd/testing/conformance.hpp>
 
 #include <gtest/gtest.h>
 
@@ -312,6 +313,35 @@ TEST(AutoencoderConfig, LatentLargerThanParamsIsAConfigError) {
   cfg.set_int("latent", 13, "test");
   Autoencoder ok(cfg, ctx);
   EXPECT_EQ(ok.latent_size(), 13);
+}
+
+// The shipped conformance checks (qd/testing) in both precisions, built from the table as the
+// core builds the model. float32 arithmetic needs a larger difference step and looser tolerances.
+TEST(AutoencoderConformance, Float64AndFloat32) {
+  const qd::PolicyShape shape(3, {4}, 2);  // P = 26
+  qd::BuildContext ctx;
+  ctx.seed = 5;
+  ctx.policy = &shape;
+  const qd::Dataset data = qd::testing::make_dataset(random_matrix(40, 26, 12));
+  for (const char* precision : {"float64", "float32"}) {
+    qd::Config cfg = qd::defaults_of(qd::autoencoder::kParams, "representation");
+    cfg.set_int("hidden", 16, "test");
+    cfg.set_int("latent", 4, "test");
+    cfg.set_int("max_epochs", 30, "test");
+    cfg.set_float("learning_rate", 1e-3, "test");
+    cfg.set_int("threads", 1, "test");
+    cfg.set_string("precision", precision, "test");
+    qd::testing::RepresentationOptions options;
+    if (std::string(precision) == "float32") {
+      options.fd_step = 1e-2;
+      options.jacobian_tolerance = 1e-2;
+      options.vjp_tolerance = 1e-5;
+      options.reconstruction_tolerance = 1e-5;
+    }
+    const qd::testing::Report report =
+        qd::testing::check_representation([&] { return std::make_unique<Autoencoder>(cfg, ctx); }, data, options);
+    EXPECT_TRUE(report.ok()) << precision << ": " << report;
+  }
 }
 
 }  // namespace

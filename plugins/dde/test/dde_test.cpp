@@ -3,6 +3,8 @@
 #include "dde_mutator.hpp"
 
 #include <qd/errors.hpp>
+#include <qd/testing/conformance.hpp>
+#include <qd/testing/linear_model.hpp>
 
 #include <gtest/gtest.h>
 
@@ -18,29 +20,14 @@ using qd::Rng;
 using qd::Stream;
 using qd::dde::DdeMutator;
 
-// A linear "autoencoder": Enc(θ) = (θ − μ) Wᵀ, Dec(z) = z W + μ, with P = 6, LD = 2.
-class LinearRepresentation final : public qd::Representation {
- public:
-  LinearRepresentation() : w_(2, 6), mu_(6) {
-    w_ << 1, 0, 0, 0, 0, 0,  //
-        0, 1, 1, 0, 0, 0;
-    mu_.setZero();
-  }
-  void set_offset(const qd::RowVector& mu) { mu_ = mu; }
-  int latent_size() const noexcept override { return 2; }
-  qd::FitReport fit(const qd::Dataset&, const qd::FitContext&) override { return {}; }
-  void encode(const Matrix& theta, Matrix& z) const override { z = (theta.rowwise() - mu_) * w_.transpose(); }
-  void decode(const Matrix& z, Matrix& theta) const override { theta = (z * w_).rowwise() + mu_; }
-  void decoder_jacobians(const Matrix& z, std::vector<Matrix>& jacobians) const override {
-    jacobians.assign(static_cast<std::size_t>(z.rows()), w_.transpose());
-  }
-  void save(std::ostream&) const override {}
-  void load(std::istream&) override {}
-
- private:
-  Matrix w_;
-  qd::RowVector mu_;
-};
+// A linear "autoencoder": Enc(θ) = (θ − μ) Wᵀ, Dec(z) = z W + μ, with P = 6, LD = 2 and W's rows
+// e1 and e2 + e3.
+qd::testing::LinearModel linear_model(const qd::RowVector& mu = qd::RowVector::Zero(6)) {
+  Matrix w(2, 6);
+  w << 1, 0, 0, 0, 0, 0,  //
+      0, 1, 1, 0, 0, 0;
+  return qd::testing::LinearModel(w, mu);
+}
 
 qd::Config base_config() {
   return qd::defaults_of(qd::dde::kDdeParams, "mutator");
@@ -93,10 +80,9 @@ TEST(DdeArms, EachArmProducesItsSplitInOrder) {
   cfg.set_float("line_dd_line_sigma", 0.0, "test");
   cfg.set_float("iso_sigma", 0.0, "test");
   const qd::BuildContext bctx;
-  LinearRepresentation rep;
   qd::RowVector mu(6);
   mu << 0.5, -1, 2, 0, 0, 3;
-  rep.set_offset(mu);
+  const qd::testing::LinearModel rep = linear_model(mu);
   const std::size_t n = 200;
   const qd::Parents parents = make_parents(n);
   Matrix z_all, rec_all;
@@ -143,7 +129,7 @@ TEST(DdeArms, EachArmProducesItsSplitInOrder) {
 // Enc θ = (1, 6), Dec = (1, 6, 6, 0, 0, 0), ½(θ + Dec) = (1, 4, 5, 1.5, 0, −1).
 TEST(DdeArms, CrossoverKnownAnswer) {
   const qd::BuildContext bctx;
-  LinearRepresentation rep;
+  const qd::testing::LinearModel rep = linear_model();
   DdeMutator mutator(base_config(), bctx);
   qd::Parents parents;
   parents.theta.resize(4, 6);
@@ -177,7 +163,7 @@ const std::vector<Step> kScript = {
 };
 
 struct Driver {
-  LinearRepresentation rep;
+  qd::testing::LinearModel rep = linear_model();
   qd::Parents parents = make_parents(200);
 
   // Runs mutate() for step s; returns the arm and leaves the offspring in `out`.
@@ -350,6 +336,20 @@ TEST(DdeMutatorInfo, NeedsLatentAndNamesTheArmMetric) {
   DdeMutator m(base_config(), bctx);
   EXPECT_TRUE(m.needs_latent());
   EXPECT_EQ(m.metric_names(), (std::vector<std::string>{"arm"}));
+}
+
+// The shipped conformance checks (qd/testing) for both bandit updates, over enough iterations for
+// the UCB choice to follow the random first arm (with a random linear model as the representation).
+TEST(DdeMutatorInfo, Conforms) {
+  for (const char* update : {"reference", "ucb1"}) {
+    qd::Config cfg = base_config();
+    cfg.set_string("update", update, "test");
+    qd::testing::MutatorCase c;
+    c.iterations = 5;
+    const qd::testing::Report report =
+        qd::testing::check_mutator([&] { return std::make_unique<DdeMutator>(cfg, qd::BuildContext{}); }, c);
+    EXPECT_TRUE(report.ok()) << update << ": " << report;
+  }
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <qd/errors.hpp>
 #include <qd/policy.hpp>
 #include <qd/rng.hpp>
+#include <qd/testing/conformance.hpp>
 
 #include <gtest/gtest.h>
 #include <Eigen/SVD>
@@ -248,6 +249,19 @@ TEST(PcaTest, FitWritesExplainedVarianceCsv) {
   EXPECT_EQ(lines[0], "loop,component,explained_variance_ratio");
   EXPECT_EQ(lines[3].rfind("1,0,", 0), 0u);
   std::filesystem::remove_all(dir);
+}
+
+// The shipped conformance checks (qd/testing), built as the core builds it: from its table.
+TEST(PcaTest, Conforms) {
+  const qd::PolicyShape shape(3, {4}, 2);  // P = 4·4 + 5·2 = 26
+  qd::BuildContext ctx;
+  ctx.policy = &shape;
+  qd::Config cfg = qd::defaults_of(qd::pca::kParams, "representation");
+  cfg.set_int("latent", 5, "test");
+  const qd::Dataset data = qd::testing::make_dataset(low_rank(30, 26, 8, 31));
+  const qd::testing::Report report =
+      qd::testing::check_representation([&] { return std::make_unique<PcaRepresentation>(cfg, ctx); }, data);
+  EXPECT_TRUE(report.ok()) << report;
 }
 
 }  // namespace

@@ -5,11 +5,9 @@
 #include <qd/dataset.hpp>
 #include <qd/errors.hpp>
 #include <qd/rng.hpp>
+#include <qd/testing/conformance.hpp>
 #include <qd/testing/elites.hpp>
-
-#ifdef QD_POMS_TEST_WITH_PCA
-#include "pca.hpp"
-#endif
+#include <qd/testing/linear_model.hpp>
 
 #include <gtest/gtest.h>
 
@@ -265,11 +263,11 @@ TEST(PomsTest, ArchiveMeanThresholdIsTheMeanOfStoredErrors) {
   EXPECT_DOUBLE_EQ(mutator.threshold(), 0.4);
 }
 
-#ifdef QD_POMS_TEST_WITH_PCA
+// PoMS-PCA: a linear decoder with orthonormal rows, as PCA's, makes JᵀJ = I.
 TEST(PomsTest, PcaLatentCovarianceIsSigmaIdentity) {
   const int ld = 3, p = 8;
-  qd::pca::PcaRepresentation pca(ld, p);
-  pca.fit_matrix(gaussian(50, ld, 50) * gaussian(ld, p, 51) + gaussian(50, p, 52, 0.1));
+  const auto model = qd::testing::LinearModel::random(ld, p, 50);
+  const qd::Representation& pca = *model;
   const Matrix parent = gaussian(1, p, 53);
   Matrix z0;
   pca.encode(parent, z0);
@@ -286,13 +284,12 @@ TEST(PomsTest, PcaLatentCovarianceIsSigmaIdentity) {
     EXPECT_LT(fit, 5.0);
     ::testing::Test::RecordProperty(meaning == SigmaMeaning::kVariance ? "max_se_variance" : "max_se_std",
                                     std::to_string(fit));
-    // PCA reconstructs a latent offspring exactly: θ' = Dec(z') and Enc(θ') = z'.
+    // An orthonormal linear model reconstructs a latent offspring exactly: θ' = Dec(z') and Enc(θ') = z'.
     Matrix back;
     pca.encode(out.theta.bottomRows(100), back);
     EXPECT_LT((back - out.latent.bottomRows(100)).cwiseAbs().maxCoeff(), 1e-12);
   }
 }
-#endif
 
 // Parents far apart (parent i ≈ 100·i) so every offspring can be traced to its parent.
 Matrix distinct_parents(Eigen::Index n, Eigen::Index p) {
@@ -488,6 +485,26 @@ TEST(PomsTest, NoJacobianStepDistribution) {
     EXPECT_LT(std::abs(u.mean()), 5.0 / std::sqrt(dn));
     EXPECT_LT(std::abs(u.square().mean() - 1.0), 5.0 * std::sqrt(2.0 / dn));
   }
+}
+
+// The shipped conformance checks (qd/testing) for both mutators and both thresholds, with the
+// non-linear test model as the representation.
+TEST(PomsTest, Conforms) {
+  const EluModel model(3, 5, 12);
+  qd::testing::MutatorCase c;
+  c.params = 12;
+  c.representation = &model;
+  for (const char* threshold : {"archive-mean", "refreshed"}) {
+    qd::Config cfg = qd::defaults_of(qd::poms::kPomsParams, "mutator");
+    cfg.set_string("threshold", threshold, "test");
+    const qd::testing::Report report =
+        qd::testing::check_mutator([&] { return std::make_unique<PomsMutator>(cfg, qd::BuildContext{}); }, c);
+    EXPECT_TRUE(report.ok()) << threshold << ": " << report;
+  }
+  const qd::Config cfg = qd::defaults_of(qd::poms::kNoJacobianParams, "mutator");
+  const qd::testing::Report report =
+      qd::testing::check_mutator([&] { return std::make_unique<NoJacobianMutator>(cfg, qd::BuildContext{}); }, c);
+  EXPECT_TRUE(report.ok()) << "poms-no-jacobian: " << report;
 }
 
 }  // namespace

@@ -1,7 +1,7 @@
 // Iso+LineDD (Vassiliades & Mouret, GECCO 2018) and the reference's partner pairing (spec 4.2).
 //
-// Internal to the line_dd and dde plugins: both compile line_dd_ops.cpp into their own library, so
-// each plugin stays self-contained.
+// Shared by the line_dd and dde plugins through the static library qd_line_dd_ops (linked into
+// each plugin, so neither needs the other built or loaded).
 #pragma once
 
 #include <qd/rng.hpp>

@@ -1,5 +1,8 @@
-// Samplers and the iso mutator against their formulas (spec 4.1, 4.7, 4.8).
+// Samplers and the iso mutator against their formulas (spec 4.1, 4.7, 4.8), and every component of
+// the plugin through the shipped conformance checks (qd/testing).
 #include "basic.hpp"
+
+#include <qd/testing/conformance.hpp>
 
 #include <gtest/gtest.h>
 
@@ -85,4 +88,29 @@ TEST(Samplers, IsoAddsGaussianNoiseOfStdSigma) {
   EXPECT_NEAR(d.mean(), 0.0, 5 * 0.3 / std::sqrt(n));
   EXPECT_NEAR(d.array().square().mean(), 0.09, 5 * 0.09 * std::sqrt(2.0 / n));
   EXPECT_EQ(off.mixing_ratio, 1.0);
+}
+
+TEST(NoRepresentation, Conforms) {
+  const qd::testing::Report report = qd::testing::check_representation(
+      [] { return std::make_unique<NoRepresentation>(Config("representation"), BuildContext{}); },
+      qd::testing::make_dataset(qd::testing::random_matrix(10, 7, 3)));
+  EXPECT_TRUE(report.ok()) << report;
+}
+
+TEST(BasicMutators, Conform) {
+  const PolicyShape shape(3, {4}, 2);  // P = 26
+  BuildContext with_policy;
+  with_policy.policy = &shape;
+  qd::testing::MutatorCase c;
+  c.params = shape.param_count();
+  const std::pair<const char*, qd::testing::MutatorFactory> mutators[] = {
+      {"iso", [] { return std::make_unique<IsoMutator>(defaults_of(kIsoParams, "mutator"), BuildContext{}); }},
+      {"uniform",
+       [] { return std::make_unique<UniformSampler>(defaults_of(kUniformParams, "mutator"), BuildContext{}); }},
+      {"glorot", [&] { return std::make_unique<GlorotSampler>(Config("mutator"), with_policy); }},
+  };
+  for (const auto& [name, make] : mutators) {
+    const qd::testing::Report report = qd::testing::check_mutator(make, c);
+    EXPECT_TRUE(report.ok()) << name << ": " << report;
+  }
 }
