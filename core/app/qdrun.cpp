@@ -328,7 +328,8 @@ int qdrun_main(int argc, char** argv) {
       return kExitOk;
     }
     if (cli.version) {
-      std::printf("qdrun %s (git %s)\nfingerprint %s\n", version_string(), git_revision(), build_fingerprint());
+      std::printf("qdrun %s (git %s)\nfingerprint %s\ninstruction set %s\n", version_string(), git_revision(),
+                  build_fingerprint(), instruction_set());
       return kExitOk;
     }
     if (cli.list || !cli.describe.empty()) {

@@ -12,4 +12,7 @@ const char* version_string() noexcept {
 const char* git_revision() noexcept {
   return QD_GIT_REVISION;
 }
+const char* instruction_set() noexcept {
+  return QD_INSTRUCTION_SET;  // defined by core/CMakeLists.txt
+}
 }  // namespace qd

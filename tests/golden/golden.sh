@@ -7,9 +7,10 @@
 #   tests/golden/golden.sh QDRUN OUT_DIR --update   rewrite them
 #
 # Hashed: archive.csv byte for byte; metrics.csv and training.csv without their wall-clock
-# columns. Floating-point results depend on the vector width the build uses (Eigen's packet size
-# changes summation order), so hashes are kept per build class (Eigen's alignment: 64 bytes =
-# AVX-512, 32 = AVX); a class with no file yet is reported as skipped, never as passed.
+# columns. Floating-point results depend on the instruction set the build uses (Eigen's packet size
+# changes summation order, FMA contraction rounding), so hashes are kept per instruction-set level
+# (QD_ARCH=level: x86-64-v4.sha256, x86-64-v3.sha256, ...); a build with no file (QD_ARCH=native,
+# another CPU family) is reported as skipped, never as passed.
 source "$(cd "$(dirname "$0")/../e2e" && pwd)/lib.sh"
 qdrun=$1 out=$2 mode=${3:-check}
 root=$(cd "$(dirname "$0")/../.." && pwd)
@@ -45,7 +46,8 @@ for entry in "${runs[@]}"; do
     printf '%s training.csv %s\n' "$name" "$(drop_columns "$dir/training.csv" seconds | sha256sum | cut -c1-64)"
   } >> "$hashes"
 done
-class=$(sed -n 's/^build_fingerprint = .*align=\([0-9]*\)\/.*/eigen-align-\1/p' "$(run_dir "$out/iso")/provenance.toml")
+class=$(sed -n 's/^instruction_set = "-march=\([^ "]*\).*/\1/p' "$(run_dir "$out/iso")/provenance.toml")
+class=${class:-none}
 expected=$root/tests/golden/$class.sha256
 if [ "$mode" = "--update" ]; then
   cp "$hashes" "$expected"

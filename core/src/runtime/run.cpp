@@ -296,6 +296,7 @@ void Run::write_provenance() const {
   o << "qd_version = " << toml_string(version_string()) << "\n"
     << "git_revision = " << toml_string(git_revision()) << "\n"
     << "build_fingerprint = " << toml_string(build_fingerprint()) << "\n"
+    << "instruction_set = " << toml_string(instruction_set()) << "\n"
     << "host = " << toml_string(host) << "\n"
     << "cpu = " << toml_string(cpu_model()) << "\n"
     << "hardware_threads = " << hardware_workers() << "\n"
