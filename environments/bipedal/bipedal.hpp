@@ -99,20 +99,20 @@ std::int64_t kicker_ball_cell(const Trace& trace, double* values);
 int bin_index(double v, double lo, double hi, int n) noexcept;
 
 constexpr ParamSpec kWalkerParams[] = {
-    param_bool("mix_scale", "false", "multiply the mix_scale_elements observation entries by 100 (spec 1.4)"),
+    param_bool("mix_scale", "false", "multiply the mix_scale_elements observation entries by 100 (mix-scale walker)"),
     param_string("mix_scale_elements", "\"companion\"", "companion|paper",
                  "with mix_scale: companion = entries 14..25 (lidar, hull x, y; the companion code); paper = 24, 25 "
                  "(hull x, y: the absolute position, the paper's text)"),
     param_int("max_steps", "500", 1, 1000000, "maximum policy steps per episode; trace keeps max_steps/20 rows"),
 };
 constexpr ParamSpec kKickerParams[] = {
-    param_bool("mix_scale", "false", "multiply the mix_scale_elements observation entries by 100 (spec 1.6)"),
+    param_bool("mix_scale", "false", "multiply the mix_scale_elements observation entries by 100 (mix-scale kicker)"),
     param_string("mix_scale_elements", "\"companion\"", "companion|paper",
                  "with mix_scale: companion = S = 100 on entries 14..29 (lidar, hull pos, ball pos and velocity; the "
                  "companion code); paper = none (the paper's mix-scale Kicker is the unscaled original)"),
     param_bool("normalised", "false",
-               "hull and ball positions normalised: x / 93.333, (y - 4) / 3 (entries 24..27; spec 1.6, the paper's "
-               "normal Kicker); excludes mix_scale"),
+               "hull and ball positions normalised: x / 93.333, (y - 4) / 3 (entries 24..27; the paper's normal "
+               "Kicker); excludes mix_scale"),
     param_int("max_steps", "500", 1, 1000000, "maximum policy steps per episode; trace keeps max_steps/20 rows"),
 };
 constexpr ParamSpec kWalkerGaitParams[] = {

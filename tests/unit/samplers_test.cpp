@@ -1,4 +1,4 @@
-// Samplers and the iso mutator against their formulas (spec 4.1, 4.7, 4.8).
+// Samplers and the iso mutator against their formulas (docs/reference-behaviour.md).
 #include "basic.hpp"
 
 #include <gtest/gtest.h>

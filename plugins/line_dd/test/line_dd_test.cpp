@@ -1,4 +1,4 @@
-// Known-answer and statistical tests of the Iso+LineDD operator and its partner pairing (spec 4.2).
+// Known-answer and statistical tests of the Iso+LineDD operator and its partner pairing (README.md).
 #include "iso_line_dd_mutator.hpp"
 #include "line_dd_ops.hpp"
 
