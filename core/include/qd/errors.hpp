@@ -1,6 +1,6 @@
 // Error types and the aborting invariant check.
 //
-// Three kinds of failure, three mechanisms (see README "Errors"):
+// Three kinds of failure, three mechanisms (docs/plugin-guide.md, "Errors"):
 //  * setup-time problems the user can fix (bad TOML, unknown component, broken plugin):
 //    exceptions derived from qd::Error, caught once by qdrun and reported with exit code 2;
 //  * expected per-evaluation outcomes (a diverged simulation, a NaN action): status values
