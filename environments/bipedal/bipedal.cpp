@@ -1,4 +1,4 @@
-// Walker and kicker episodes: gym 0.11's BipedalWalker robot on Box2D 2.4.1 (spec 1.0, 1.3-1.6).
+// Walker and kicker episodes: gym 0.11's BipedalWalker robot on Box2D 2.4.1 (README.md).
 #include "bipedal.hpp"
 
 #include <qd/errors.hpp>
@@ -38,7 +38,7 @@ constexpr double kMixScale = 100.0;
 constexpr int kKickerActiveSteps = 100;  // the action is zeroed once the counter exceeds this
 constexpr int kLidarRays = 10;
 
-// Collision filters (spec 1.3, 1.5). Ground is category 1 with the default mask everywhere.
+// Collision filters (as in the reference). Ground is category 1 with the default mask everywhere.
 constexpr std::uint16_t kGroundCategory = 0x0001;
 constexpr std::uint16_t kWalkerBodyCategory = 0x0020, kWalkerBodyMask = 0x0001;
 constexpr std::uint16_t kKickerBodyCategory = 0x0002, kKickerBodyMask = 0x0005;
@@ -343,7 +343,7 @@ class Scene {
     return Termination::kMaxSteps;
   }
 
-  // The kicker discards gym's done and recomputes it (spec 1.5).
+  // The kicker discards gym's done and recomputes it (README.md).
   Termination kicker_done() {
     const b2Vec2 bp = ball_->GetPosition();
     const b2Vec2 bv = ball_->GetLinearVelocity();

@@ -1,4 +1,4 @@
-// Bipedal Walker and Bipedal Kicker (spec sections 1.3-1.7, gym 0.11 physics on Box2D 2.4.1).
+// Bipedal Walker and Bipedal Kicker (README.md; gym 0.11 physics on Box2D 2.4.1).
 //
 // The plugin classes are thin wrappers around run_episode(), which the tests and the bare-loop
 // benchmark call directly. See README.md for observation and trace layouts.
@@ -22,7 +22,7 @@ enum class Task { kWalker, kKicker };
 
 // Which observation entries mix-scale multiplies by 100.
 enum class MixScaleElements {
-  kCompanion,  // the companion code (spec 1.4, 1.6): walker 14..25 (lidar, hull x, y); kicker 14..29 (lidar,
+  kCompanion,  // the companion code: walker 14..25 (lidar, hull x, y); kicker 14..29 (lidar,
                // hull x, y, ball x, y, ball vx, vy)
   kPaper,      // the paper's text: walker 24, 25 (hull x, y, the absolute position only); kicker none (the
                // paper's mix-scale Kicker is the unscaled original)
@@ -33,7 +33,7 @@ struct EpisodeOptions {
   bool mix_scale = false;  // x100 on the mix_scale_elements entries of the observation
   MixScaleElements mix_scale_elements = MixScaleElements::kCompanion;
   // Kicker only, excludes mix_scale: hull and ball positions normalised (hull x / 93.333,
-  // (hull y - 4) / 3, ball likewise; spec 1.6), the paper's "normal" Kicker.
+  // (hull y - 4) / 3, ball likewise), the paper's "normal" Kicker.
   bool normalised = false;
   int max_steps = 500;
 };
@@ -42,7 +42,7 @@ struct EpisodeOptions {
 // the paper's Kicker).
 std::pair<int, int> mix_scaled_range(Task task, MixScaleElements elements) noexcept;
 
-// The kicker's normalised observation (spec 1.6): x / kTerrainFull, (y - kNormalisedYOffset) / kNormalisedYRange.
+// The kicker's normalised observation: x / kTerrainFull, (y - kNormalisedYOffset) / kNormalisedYRange.
 inline constexpr double kNormalisedYOffset = 4.0;
 inline constexpr double kNormalisedYRange = 3.0;
 
@@ -66,7 +66,7 @@ inline constexpr int kWalkerMainCols = 3;  // hull x, y, angle
 inline constexpr int kWalkerAuxCols = 5;   // contact L, contact R, |hipL - hipR|, vx, vy
 inline constexpr int kKickerMainCols = 2;  // ball x, y
 inline constexpr int kKickerAuxCols = 12;  // hull x, y, angle, contact L, R, |hipL - hipR|, vx, vy, a0..a3
-inline constexpr int kDownsample = 20;     // a trajectory row every 20 steps (spec 1.0)
+inline constexpr int kDownsample = 20;     // a trajectory row every 20 steps (as the reference)
 
 inline constexpr double kTerrainStep = 14.0 / 30.0;
 inline constexpr int kTerrainLength = 200;
@@ -78,7 +78,7 @@ inline constexpr double kKickerStartX = kTerrainStep * 95;             // 44.333
 
 int observation_size(Task task) noexcept;
 
-// The 200 walker terrain heights of spec Appendix A (seed_task = 100).
+// The 200 walker terrain heights of gym's seed-100 terrain (seed_task = 100; terrain.cpp).
 const std::array<double, kTerrainLength>& walker_terrain_heights() noexcept;
 
 // Runs one episode of `policy` (parameters already loaded) into `trace` (cleared first). When
@@ -95,24 +95,24 @@ void warm_up_box2d();
 std::int64_t walker_gait_cell(const Trace& trace, bool corrected_contact_bins, double* values);
 std::int64_t kicker_ball_cell(const Trace& trace, double* values);
 
-// int(clip((v - lo) / (hi - lo) * n, 0, n - 1)), the reference binning rule (spec 1.7).
+// int(clip((v - lo) / (hi - lo) * n, 0, n - 1)), the reference binning rule (README.md).
 int bin_index(double v, double lo, double hi, int n) noexcept;
 
 constexpr ParamSpec kWalkerParams[] = {
-    param_bool("mix_scale", "false", "multiply the mix_scale_elements observation entries by 100 (spec 1.4)"),
+    param_bool("mix_scale", "false", "multiply the mix_scale_elements observation entries by 100 (mix-scale walker)"),
     param_string("mix_scale_elements", "\"companion\"", "companion|paper",
                  "with mix_scale: companion = entries 14..25 (lidar, hull x, y; the companion code); paper = 24, 25 "
                  "(hull x, y: the absolute position, the paper's text)"),
     param_int("max_steps", "500", 1, 1000000, "maximum policy steps per episode; trace keeps max_steps/20 rows"),
 };
 constexpr ParamSpec kKickerParams[] = {
-    param_bool("mix_scale", "false", "multiply the mix_scale_elements observation entries by 100 (spec 1.6)"),
+    param_bool("mix_scale", "false", "multiply the mix_scale_elements observation entries by 100 (mix-scale kicker)"),
     param_string("mix_scale_elements", "\"companion\"", "companion|paper",
                  "with mix_scale: companion = S = 100 on entries 14..29 (lidar, hull pos, ball pos and velocity; the "
                  "companion code); paper = none (the paper's mix-scale Kicker is the unscaled original)"),
     param_bool("normalised", "false",
-               "hull and ball positions normalised: x / 93.333, (y - 4) / 3 (entries 24..27; spec 1.6, the paper's "
-               "normal Kicker); excludes mix_scale"),
+               "hull and ball positions normalised: x / 93.333, (y - 4) / 3 (entries 24..27; the paper's normal "
+               "Kicker); excludes mix_scale"),
     param_int("max_steps", "500", 1, 1000000, "maximum policy steps per episode; trace keeps max_steps/20 rows"),
 };
 constexpr ParamSpec kWalkerGaitParams[] = {

@@ -1,4 +1,4 @@
-// walker-gait (gait_grid) and kicker-ball (simple_grid) descriptors, spec 1.7.
+// walker-gait (gait_grid) and kicker-ball (simple_grid) descriptors (README.md).
 #include "bipedal.hpp"
 
 #include <algorithm>

@@ -1,6 +1,6 @@
-// Walker terrain: the 200 heights of spec Appendix A, gym 0.11's smooth random terrain for
+// Walker terrain: the 200 heights of gym 0.11's smooth random terrain for
 // seed_task = 100. Hard-coded because re-deriving them needs numpy's legacy RandomState and gym's
-// seeding (SHA-512 of "100"); the spec computed them once.
+// seeding (SHA-512 of "100"); they were computed once, outside qdrun.
 #include "bipedal.hpp"
 
 namespace qd::bipedal {

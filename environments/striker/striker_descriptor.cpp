@@ -44,9 +44,11 @@ int bin_y(double y_n) {
 GridSpec ContactGridDescriptor::grid() const {
   GridSpec spec;
   spec.shape = {kWallClasses, kPositionBins, kPositionBins};
-  spec.names = {"walls", "x", "y"};
-  spec.lower = {0.0, kMinX, kMinY};
-  spec.upper = {static_cast<double>(kWallClasses), kMaxX, kMaxY};
+  // In the order of the cell index, g * 900 + py * 30 + px (row-major, x fastest), so that grid.toml
+  // decomposes a cell correctly; the values written by describe() stay (g, x_n, y_n).
+  spec.names = {"walls", "y", "x"};
+  spec.lower = {0.0, kMinY, kMinX};
+  spec.upper = {static_cast<double>(kWallClasses), kMaxY, kMaxX};
   spec.cells = kCells;
   return spec;
 }

@@ -1,9 +1,8 @@
-// The Striker "contact_grid" behaviour descriptor (spec 1.7): which walls the puck touched first
-// (17 classes) x final puck position (30 x 30 bins) = 15300 cells.
+// The Striker "contact_grid" behaviour descriptor (README.md, "Descriptor"): which walls the puck
+// touched first (17 classes) x final puck position (30 x 30 bins) = 15300 cells.
 //
-// Cell index = g * 900 + py * 30 + px, i.e. x varies fastest. The continuous values are written
-// in the order (g, x_n, y_n) and the GridSpec names them {"walls", "x", "y"}, so the index is NOT
-// row-major over the names' order: it is row-major over (walls, y, x), as in the reference.
+// Cell index = g * 900 + py * 30 + px, i.e. x varies fastest, as in the reference: row-major over
+// the GridSpec's (walls, y, x). The continuous values are written in the order (g, x_n, y_n).
 #pragma once
 
 #include <qd/config.hpp>

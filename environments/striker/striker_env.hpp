@@ -1,4 +1,4 @@
-// The "striker" environment component: air-hockey Striker of the PoMS paper (spec 1.1, 1.2).
+// The "striker" environment component: air-hockey Striker of the PoMS paper (README.md).
 #pragma once
 
 #include "striker_sim.hpp"

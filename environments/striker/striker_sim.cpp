@@ -91,7 +91,7 @@ struct Scene {
 
     {
       // The reference creates the striker at the origin and moves it before any step; creating it
-      // at the start pose directly is equivalent (spec 1.1).
+      // at the start pose directly is equivalent (README.md, "Simulation").
       b2BodyDef def;
       def.type = b2_dynamicBody;
       def.position.Set(static_cast<float>(kStrikerStartX), static_cast<float>(kStrikerStartY));

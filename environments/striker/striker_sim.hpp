@@ -1,4 +1,4 @@
-// The Striker simulation (spec sections 0, 1.0, 1.1, 1.2): one episode in a fresh Box2D world.
+// The Striker simulation (README.md, "Simulation"): one episode in a fresh Box2D world.
 //
 // Shared by the plugin (StrikerEnvironment::rollout) and the bare benchmark, so that the two run
 // exactly the same code and a throughput comparison measures framework overhead only.
@@ -17,12 +17,12 @@ namespace qd::striker {
 inline constexpr int kObservationSize = 14;
 inline constexpr int kActionSize = 3;
 // A trajectory row is kept after every step with step % kRowEvery == 0 (and at done); at most
-// max_steps / kRowEvery rows survive (spec 1.0).
+// max_steps / kRowEvery rows survive (as in the reference; README.md, "Trace layout").
 inline constexpr int kRowEvery = 20;
 // The reference zeroes the action once its step counter (starting at -1) exceeds 100: the policy
 // controls the first 102 calls to step().
 inline constexpr int kPolicyActiveSteps = 102;
-// Mix-scale multiplies six observation entries by this (spec 1.2); which six: MixScaleElements.
+// Mix-scale multiplies six observation entries by this; which six: MixScaleElements.
 inline constexpr float kMixScale = 100.0f;
 
 // World geometry in world units (SCALE 5, 500x500 viewport -> 100x100).
@@ -51,7 +51,7 @@ inline double world_y(double y_n) {
 
 // The observation entries that mix-scale multiplies by kMixScale.
 enum class MixScaleElements {
-  kCompanion,  // obs[3], obs[4], obs[10..13]: puck position and wall distances (the companion code, spec 1.2)
+  kCompanion,  // obs[3], obs[4], obs[10..13]: puck position and wall distances (the companion code)
   kPaper,      // obs[0], obs[1], obs[3], obs[4], obs[8], obs[9]: the paper's text, the exteroceptive inputs
                // (puck position and velocity) and the striker's absolute position
 };

@@ -159,7 +159,7 @@ class Network final : public Model {
     FitReport report;
     report.train_loss = std::nan("");
     report.test_loss = std::nan("");
-    // Spec 5.4: the optimiser state restarts every loop; the weights warm-start.
+    // As the reference (README.md): the optimiser state restarts every loop; the weights warm-start.
     m_.setZero();
     v_.setZero();
     steps_ = 0;

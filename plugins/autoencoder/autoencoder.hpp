@@ -1,4 +1,4 @@
-// The PoMS parameter autoencoder (spec 5.1-5.5): P -> HD (ELU) -> LD -> HD (ELU) -> P, trained with
+// The PoMS parameter autoencoder (README.md): P -> HD (ELU) -> LD -> HD (ELU) -> P, trained with
 // Adam on the per-sample sum of squared errors, with the reference's train/test split and
 // slope-based early stopping. The model is a template on its scalar (float32 or float64); the
 // qd::Representation wrapper converts at the interface, where everything is double.
@@ -49,12 +49,12 @@ inline constexpr ParamSpec kParams[] = {
 // Least-squares slope of y against x = 0..n-1 (what scipy's linregress returns as .slope).
 double loss_slope(const double* y, std::size_t n);
 
-// The reference early-stopping rule (spec 5.5), evaluated after epoch `epoch` (0-based) when
+// The reference early-stopping rule (README.md), evaluated after epoch `epoch` (0-based) when
 // `test_losses` holds the test losses of epochs 0..epoch: stop iff epoch > window and the slope
 // of the last `window` losses is >= min_slope.
 bool should_stop(const std::vector<double>& test_losses, int epoch, int window, double min_slope);
 
-// Row indices of the test and training sets for one fit() (spec 5.5).
+// Row indices of the test and training sets for one fit() (README.md, test_split).
 struct Split {
   std::vector<Eigen::Index> test;
   std::vector<Eigen::Index> train;

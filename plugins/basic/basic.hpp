@@ -29,7 +29,7 @@ class NoRepresentation final : public Representation {
   void load(std::istream&) override {}
 };
 
-// MAPE-Iso (spec 4.1): θ′ = θ + σ·ε.
+// MAPE-Iso: θ′ = θ + σ·ε.
 class IsoMutator final : public Mutator {
  public:
   IsoMutator(const Config& cfg, const BuildContext&);
@@ -39,7 +39,7 @@ class IsoMutator final : public Mutator {
   double sigma_;
 };
 
-// ps-uniform (spec 4.7): every parameter i.i.d. U(low, high); parents ignored.
+// ps-uniform: every parameter i.i.d. U(low, high); parents ignored.
 class UniformSampler final : public Mutator {
  public:
   UniformSampler(const Config& cfg, const BuildContext&);
@@ -50,7 +50,7 @@ class UniformSampler final : public Mutator {
   double low_, high_;
 };
 
-// ps-glorot (spec 4.8): layer l i.i.d. N(0, 1/(r_l + c_l)) with r_l = n_in + 1, c_l = n_out.
+// ps-glorot: layer l i.i.d. N(0, 1/(r_l + c_l)) with r_l = n_in + 1, c_l = n_out.
 class GlorotSampler final : public Mutator {
  public:
   GlorotSampler(const Config& cfg, const BuildContext& ctx);

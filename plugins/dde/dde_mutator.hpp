@@ -1,4 +1,4 @@
-// MAPE-DDE mutator "dde" (spec 4.4): a UCB bandit over nine mixtures of three operators,
+// MAPE-DDE mutator "dde" (README.md): a UCB bandit over nine mixtures of three operators,
 // (a) reconstruction "crossover" ½(θ + Dec(Enc(θ))), (b) Iso+LineDD, (c) Iso.
 #pragma once
 

@@ -1,4 +1,4 @@
-// MAPE-IsoLineDD mutator "iso-line-dd" (spec 4.2).
+// MAPE-IsoLineDD mutator "iso-line-dd" (README.md).
 #pragma once
 
 #include "line_dd_ops.hpp"

@@ -105,7 +105,7 @@ void PcaRepresentation::fit_matrix(const Matrix& data) {
   mean_ = data.colwise().mean();
   const Matrix centred = data.rowwise() - mean_;
 
-  // Reference rule (spec 5.6): with fewer samples than components the data are tiled LD times
+  // Reference rule (README.md): with fewer samples than components the data are tiled LD times
   // before fitting. Tiling k times multiplies the Gram/scatter matrix by k and leaves the mean,
   // the components and the variance ratios unchanged; only the ddof-1 variance changes, to
   // k·s²/(k·N − 1). So it is applied in closed form instead of copying the data.

@@ -1,4 +1,4 @@
-// PCA representation (spec 4.6, 5.6): exact principal components of the dataset, refitted from
+// PCA representation (README.md): exact principal components of the dataset, refitted from
 // scratch every loop. Enc(θ) = (θ − μ)Wᵀ, Dec(z) = zW + μ, ∂Dec/∂z = Wᵀ (constant).
 #pragma once
 

@@ -65,7 +65,7 @@ double PomsMutator::latent_noise_std() const noexcept {
 void PomsMutator::begin_loop(const LoopContext& ctx) {
   QD_CHECK(ctx.archive != nullptr, "poms: begin_loop needs the archive");
   if (mode_ == ThresholdMode::kArchiveMean) {
-    // Reference (spec 3.3.2): the stored errors are those computed when each elite entered the
+    // Reference (README.md, threshold): the stored errors are those computed when each elite entered the
     // archive, never refreshed after retraining; latent-space offspring carry 0.
     threshold_ = ctx.archive->mean_recn_error();
     return;
@@ -180,7 +180,7 @@ void NoJacobianMutator::begin_loop(const LoopContext& ctx) {
     latent_std_ = Vector::Zero(ld);
     return;
   }
-  // Spec 4.5: population std (ddof 0) per coordinate of the whole dataset, encoded with the
+  // As the reference (README.md): population std (ddof 0) per coordinate of the whole dataset, encoded with the
   // model trained at the end of the previous loop.
   Matrix z;
   rep.encode(Matrix(ctx.dataset->params()), z);

@@ -1,4 +1,4 @@
-// PoMS latent-space mutators (spec 4.3, 4.5, 4.6). They use only the Representation interface
+// PoMS latent-space mutators (the paper, Sec. 3; README.md). They use only the Representation interface
 // (encode, decode, decoder_vjp), so they work with any model that has a latent space: the
 // autoencoder (PoMS, PoMS-no-jacobian) or PCA (PoMS-PCA).
 #pragma once
@@ -49,7 +49,7 @@ class PomsMutator final : public Mutator {
   double threshold() const noexcept { return threshold_; }
   // Standard deviation of ξ in z' = z + Jᵀξ.
   double latent_noise_std() const noexcept;
-  // The parameter-space set H for these errors (spec 4.3 step 1), in index order.
+  // The parameter-space set H for these errors (README.md, step 1), in index order.
   std::vector<std::size_t> parameter_space_set(const Vector& errors) const;
 
  private:

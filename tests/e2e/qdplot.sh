@@ -13,3 +13,5 @@ rm -rf "$out"
   --set-optional representation.max_epochs=20 > /dev/null
 /usr/bin/python3 "$src/share/qdplot" "$out/runs" -o "$out/figures" --dump-data --qdrun "$qdrun" > "$out/qdplot.log"
 /usr/bin/python3 "$(dirname "$0")/qdplot_check.py" "$out/runs" "$out/figures"
+# Every map, cell by cell, from its run's archive.csv and grid.toml.
+/usr/bin/python3 "$(dirname "$0")/map_check.py" "$out"/figures/map-*.png

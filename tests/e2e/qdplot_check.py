@@ -21,13 +21,15 @@ def check(cond, what):
 
 
 # Documented sizes (share/README.md) in inches; qdplot's default dpi is 100.
-SIZES = {"coverage": (8, 6), "map-striker": (12, 6.5), "map-bipedal-walker": (14, 4), "map-bipedal-kicker": (12, 4.5),
+# Maps by layout: the Striker's 17 x 30 x 30 grid as panels, the Walker's 5 x 100 x 5 x 5 as one very wide
+# nested image, the Kicker's 50 x 200 as a wide one.
+SIZES = {"coverage": (8, 6), "map-panels": (12, 6.5), "map-very-wide": (14, 4), "map-wide": (12, 4.5),
          "traces": (7, 7), "latents": (11, 5), "losses": (8, 5)}
 EXPECTED = {
     "coverage-arm": "coverage", "coverage-striker": "coverage", "coverage-bipedal-kicker": "coverage",
     "coverage-bipedal-walker": "coverage",
-    "map-striker-poms": "map-striker", "map-bipedal-kicker-ps-uniform": "map-bipedal-kicker",
-    "map-bipedal-walker-mape-iso": "map-bipedal-walker",
+    "map-striker-poms": "map-panels", "map-bipedal-kicker-ps-uniform": "map-wide",
+    "map-bipedal-walker-mape-iso": "map-very-wide",
     "traces-striker-poms": "traces", "traces-bipedal-kicker-ps-uniform": "traces",
     "traces-bipedal-walker-mape-iso": "traces",
     "latents-striker-poms": "latents", "latents-arm-poms": "latents",
@@ -116,14 +118,14 @@ for alg, name in (("MAPE-Iso", "smoke-iso"), ("PoMS", "smoke-poms")):
     check(entry["loop_end_evaluations"] == sorted(loops.values()), f"{alg} loop boundaries")
 check("mixing_ratio" in cov["algorithms"]["PoMS"], "PoMS mixing ratio panel")
 
-# Maps: every elite of the archive is a filled cell, in the environment's layout.
+# Maps: every elite of the archive is a filled cell (map_check.py checks every cell's pixel).
 for stem, name in (("map-striker-poms", "striker-poms"), ("map-bipedal-kicker-ps-uniform", "bipedal-kicker-ps-uniform"),
                    ("map-bipedal-walker-mape-iso", "bipedal-walker-iso")):
     data = json.loads((fig / f"{stem}.json").read_text())
     cells = [int(r["index"]) for r in rows(run_dirs(name)[0] / "archive.csv")]
     check(data["elites"] == len(cells) and data["filled"] == len(cells), f"{stem}: {data['filled']} vs {len(cells)}")
-    if "per_class" in data:
-        check(data["per_class"] == [sum(1 for c in cells if c // 900 == g) for g in range(17)], f"{stem} classes")
+    if "per_panel" in data:
+        check(data["per_panel"] == [sum(1 for c in cells if c // 900 == g) for g in range(17)], f"{stem} panels")
 
 # Trajectories: one path per elite, and every replay lands in its stored cell.
 for stem, name in (("traces-striker-poms", "striker-poms"), ("traces-bipedal-kicker-ps-uniform",

@@ -18,6 +18,9 @@ for alg in poms iso ps-uniform; do
   grep -q "^| $name | 3/3 | [0-9]* | $median (" "$report" || { echo "$name: median $median not in the table"; grep "^| $name |" "$report"; exit 1; }
 done
 grep -q "figures/coverage-striker.png" "$report"
+# Commands are written relative to the repository and the report's directory: no paths of this machine.
+grep -q '^- report command: `share/qdreport --environments striker .* -o REPORT_DIR --qdrun ' "$report"
+! grep -qF "$(cd "$src" && pwd)" "$report" || { echo "the report holds absolute paths:"; grep -F "$(cd "$src" && pwd)" "$report"; exit 1; }
 [ -s "$out/figures/coverage-striker.png" ] && [ -s "$out/figures/map-striker-poms.png" ]
 grep -q "^\*\*Autoencoder epochs capped at 5 per loop\*\*" "$report"  # the caption of the tables it affects
 grep -q "^| PoMS | 3/3 | .* | \*\*capped at 5\*\* |$" "$report"

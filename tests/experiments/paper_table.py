@@ -4,7 +4,7 @@
 The expected values are written here independently of the files: the budgets of the paper's figures
 (Striker 10^6 evaluations after loop 0, Walker and Kicker 2 x 10^6), the paper's table of PoMS
 hyperparameters (HD / LD / sigma per environment, mix-scale included), the observation variants of
-the paper's text, the reference's seeds (spec 3.8) and the algorithm of every file. Every directory
+the paper's text, the reference code's seeds (one per config) and the algorithm of every file. Every directory
 of experiments/ except smoke/ must be one of the six variants, with the eight algorithm files.
 
   paper_table.py EXPERIMENTS_DIR     check the files; exit 1 listing every mismatch
@@ -28,7 +28,7 @@ VARIANTS = {
                                  (100, 50, 0.01)),
 }
 INITIAL_SAMPLES = 2000  # loop 0 of every file (the reference's Walker MAP-Elites configs: 200, see README)
-# Seeds of the reference's configs (spec 3.8): algorithm -> (striker, walker, kicker); mix-scale as plain.
+# Seeds of the reference code's configs: algorithm -> (striker, walker, kicker); mix-scale as plain.
 SEEDS = {"poms": (500, 100, 200), "poms-no-jacobian": (300, 100, 300), "poms-pca": (400, 500, 500),
          "dde": (400, 500, 200), "iso": (300, 200, 500), "iso-line-dd": (400, 400, 400),
          "ps-uniform": (100, 400, 400), "ps-glorot": (300, 200, 100)}

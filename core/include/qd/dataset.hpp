@@ -1,4 +1,4 @@
-// The training dataset D of the representation (spec 3.1, 3.3 step 4).
+// The training dataset D of the representation (the paper, Sec. 3).
 //
 // Reference semantics: one policy per behaviour cell ever discovered, namely the archive occupant
 // at the end of the loop in which the cell was first filled; later replacements in the archive are

@@ -7,7 +7,7 @@
 //  * All randomness comes from ctx.rng, which the core derives from (seed, loop, iteration).
 //  * mutate() fills out.theta with `count` rows. When the representation has a latent space, a
 //    mutator may give the latent point each offspring came from (out.latent row + has_latent = 1);
-//    the core encodes the others and stores recn_error = ‖θ′ − Dec(z′)‖ (spec 3.3.3.4).
+//    the core encodes the others and stores recn_error = ‖θ′ − Dec(z′)‖ (docs/reference-behaviour.md).
 //  * Mutators whose uses_parents() is false (samplers: ps-uniform, ps-glorot) get no parents.
 //  * State that must survive a checkpoint (the DDE bandit) goes through save()/load().
 #pragma once

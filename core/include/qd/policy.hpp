@@ -1,4 +1,4 @@
-// The policy network: an MLP with tanh hidden layers and a linear output (spec section 2).
+// The policy network: an MLP with tanh hidden layers and a linear output (docs/design.md).
 //
 // Flat parameter layout θ ∈ R^P, exactly the reference's: for each layer l in order, a matrix of
 // (n_in + 1) rows × n_out columns flattened row-major (index r * n_out + c); rows 0..n_in-1 hold

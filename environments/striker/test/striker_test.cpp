@@ -1,5 +1,5 @@
-// Striker environment and contact-grid descriptor: known answers from the spec (sections 1.0, 1.1,
-// 1.2, 1.7, 2) and from the reference's float64 arithmetic.
+// Striker environment and contact-grid descriptor: known answers from the reference's behaviour
+// (README.md) and from its float64 arithmetic.
 #include "striker_descriptor.hpp"
 #include "striker_env.hpp"
 #include "striker_sim.hpp"
@@ -92,12 +92,28 @@ TEST(StrikerEnvironment, InfoAndDefaults) {
 TEST(StrikerDescriptor, GridSpec) {
   const qd::GridSpec grid = ContactGridDescriptor().grid();
   EXPECT_EQ(grid.shape, (std::vector<std::int64_t>{17, 30, 30}));
-  EXPECT_EQ(grid.names, (std::vector<std::string>{"walls", "x", "y"}));
+  EXPECT_EQ(grid.names, (std::vector<std::string>{"walls", "y", "x"}));
   EXPECT_EQ(grid.cells, 15300);
-  EXPECT_DOUBLE_EQ(grid.lower[1], -0.965);
-  EXPECT_DOUBLE_EQ(grid.upper[1], 0.965);
-  EXPECT_DOUBLE_EQ(grid.lower[2], -0.465);
-  EXPECT_DOUBLE_EQ(grid.upper[2], 1.465);
+  EXPECT_DOUBLE_EQ(grid.lower[1], -0.465);
+  EXPECT_DOUBLE_EQ(grid.upper[1], 1.465);
+  EXPECT_DOUBLE_EQ(grid.lower[2], -0.965);
+  EXPECT_DOUBLE_EQ(grid.upper[2], 0.965);
+}
+
+// The grid describes the cell index: decomposed row-major over its shape (as grid.toml readers do),
+// a cell gives the wall class, the y bin and the x bin, in the order of the names.
+TEST(StrikerDescriptor, GridDecomposesTheCellIndex) {
+  const qd::GridSpec grid = ContactGridDescriptor().grid();
+  const std::int64_t cell = qd::striker::cell_index(9, 4, 27);  // class E-N, px 4, py 27
+  std::int64_t rest = cell;
+  std::vector<std::int64_t> bins(grid.shape.size());
+  for (std::size_t d = grid.shape.size(); d-- > 0;) {
+    bins[d] = rest % grid.shape[d];
+    rest /= grid.shape[d];
+  }
+  EXPECT_EQ(bins, (std::vector<std::int64_t>{9, 27, 4}));
+  EXPECT_EQ(grid.names[1], "y");
+  EXPECT_EQ(grid.names[2], "x");
 }
 
 TEST(StrikerDescriptor, AllSeventeenWallClasses) {
@@ -105,7 +121,7 @@ TEST(StrikerDescriptor, AllSeventeenWallClasses) {
     std::vector<int> events;
     int expected;
   };
-  // Walls: 0 S, 1 E, 2 N, 3 W. Spec 1.7: S-E 5, S-N 6, S-W 7, E-S 8, E-N 9, E-W 10, N-S 11, N-E 12,
+  // Walls: 0 S, 1 E, 2 N, 3 W. README.md: S-E 5, S-N 6, S-W 7, E-S 8, E-N 9, E-W 10, N-S 11, N-E 12,
   // N-W 13, W-S 14, W-E 15, W-N 16.
   const std::vector<Case> cases = {
       {{}, 0},      {{0}, 1},     {{1}, 2},     {{2}, 3},     {{3}, 4},     {{0, 1}, 5},

@@ -1,5 +1,5 @@
-// Samplers and the iso mutator against their formulas (spec 4.1, 4.7, 4.8), and every component of
-// the plugin through the shipped conformance checks (qd/testing).
+// Samplers and the iso mutator against their formulas (docs/reference-behaviour.md), and every
+// component of the plugin through the shipped conformance checks (qd/testing).
 #include "basic.hpp"
 
 #include <qd/testing/conformance.hpp>

@@ -1,4 +1,4 @@
-// Iso+LineDD (Vassiliades & Mouret, GECCO 2018) and the reference's partner pairing (spec 4.2).
+// Iso+LineDD (Vassiliades & Mouret, GECCO 2018) and the reference's partner pairing (README.md).
 //
 // Shared by the line_dd and dde plugins through the static library qd_line_dd_ops (linked into
 // each plugin, so neither needs the other built or loaded).
@@ -49,7 +49,7 @@ struct IsoLineParams {
 void iso_line_dd(const Matrix& theta, Eigen::Index begin, Eigen::Index n, const IsoLineParams& params, Rng& rng,
                  Matrix& out);
 
-// Rows [begin, begin + n): θ′ = θ + sigma·ε_P (MAPE-Iso, spec 4.1).
+// Rows [begin, begin + n): θ′ = θ + sigma·ε_P (MAPE-Iso).
 void iso(const Matrix& theta, Eigen::Index begin, Eigen::Index n, double sigma, Rng& rng, Matrix& out);
 
 }  // namespace qd::line_dd

@@ -1,4 +1,4 @@
-// Known-answer tests of the MAPE-DDE mutator (spec 4.4): arm splits, operator order, the
+// Known-answer tests of the MAPE-DDE mutator (README.md): arm splits, operator order, the
 // reconstruction crossover, hand-computed bandit traces and bit-exact save/load.
 #include "dde_mutator.hpp"
 

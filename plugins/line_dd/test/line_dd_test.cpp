@@ -1,4 +1,4 @@
-// Known-answer and statistical tests of the Iso+LineDD mutator (spec 4.2); the partner pairing's
+// Known-answer and statistical tests of the Iso+LineDD mutator (README.md); the partner pairing's
 // own tests are in plugins/common/line_dd_ops/test.
 #include "iso_line_dd_mutator.hpp"
 
