@@ -527,8 +527,8 @@ TEST(BipedalAudit, BallOnlyInTheKicker) {
   EXPECT_TRUE(ball.dynamic);
   EXPECT_EQ(ball.fixtures, 1);
   EXPECT_NEAR(ball.x, 14.0 / 30.0 * 100, 1e-5);
-  EXPECT_NEAR(ball.y, 10.0 / 3.0 + 2 * kThird, 1e-6);          // TERRAIN_HEIGHT + 2 r = 4.0
-  EXPECT_NEAR(ball.mass, 0.5 * M_PI * kThird * kThird, 1e-6);  // r = 10/30, density 0.5
+  EXPECT_NEAR(ball.y, 10.0 / 3.0 + 2 * kThird, 1e-6);                            // TERRAIN_HEIGHT + 2 r = 4.0
+  EXPECT_NEAR(ball.mass, 0.5 * 3.14159265358979323846 * kThird * kThird, 1e-6);  // r = 10/30, density 0.5
   EXPECT_FLOAT_EQ(ball.friction, 0.1);
   EXPECT_FLOAT_EQ(ball.restitution, 0.7);
   EXPECT_EQ(ball.linear_damping, 1.0);
