@@ -564,6 +564,20 @@ TEST(BipedalAudit, KickerLidarOnFlatGround) {
   EXPECT_EQ(hits, 8);  // rays 8 and 9 are too flat to reach the ground from 5.6
 }
 
+TEST(BipedalAudit, LidarRaysCrossTheWalkerTerrainAtMostOnce) {
+  // The reference's lidar callback returns 0 (the first ground hit Box2D reports ends the ray),
+  // ours returns the fraction (the closest hit). They agree when a ray cannot cross the ground
+  // twice: every ray descends at least cot(1.35) = 0.224 per unit of x (ray 9, the flattest), so
+  // it stays below the ground once under it if no terrain edge descends faster than that.
+  const auto& h = qd::bipedal::walker_terrain_heights();
+  const double steepest_ray = std::cos(1.35) / std::sin(1.35);
+  double steepest_descent = 0.0;
+  for (std::size_t i = 0; i + 1 < h.size(); ++i)
+    steepest_descent = std::max(steepest_descent, (h[i] - h[i + 1]) / (14.0 / 30.0));
+  EXPECT_NEAR(steepest_descent, 0.1667, 1e-4);
+  EXPECT_LT(steepest_descent, steepest_ray);
+}
+
 // Known answer: the distribution of cells of a fixed set of U(-1, 1) policies (hidden [32, 32]).
 // It pins the dynamics as a whole: a change of engine, geometry, contact rules, termination or
 // binning moves it. Values measured with Debian's Box2D 2.4.1 on x86-64.
