@@ -18,16 +18,9 @@ cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DQD_BUILD_BENCHMARKS=ON
 cmake --build build --parallel > /dev/null
 fo=build/bin/qd_framework_overhead
 echo "# machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores"
-echo "# framework overhead, analytic arm, 32x32 policy (1379 parameters), 1 worker (issue 2)"
-echo "#   ps-uniform: the bare loop draws the very same policies, so the ratio is the framework alone"
-echo "#   MAPE-Iso: qdrun also pays the plugin's mutation (1379 normals per offspring)"
-for exp in arm-uniform arm-iso; do
-  $fo bench/experiments/$exp.toml --repeat 5                                              # 1 002 000 evaluations, 50 steps
-  $fo bench/experiments/$exp.toml --repeat 3 --set environment.steps=200 --set experiment.loops=11  # 202 000, 200 steps
-done
-echo "# number formatting for archive.csv: write_number vs std::to_chars, ns per number"
-build/bin/qd_number_format
-echo "# environments: ps-uniform through qdrun vs a bare rollout loop, 1 and 2 workers (issue 3)"
+echo "# the paper's workloads: qdrun vs a bare rollout loop with the same environment object, 1 and 2 workers"
+echo "#   ps-uniform: the bare loop rolls out the very same policies, so the ratio is the framework alone"
+echo "#   MAPE-Iso: qdrun also pays the plugin's mutation"
 for env in striker striker-mix-scale bipedal-walker bipedal-walker-mix-scale bipedal-kicker bipedal-kicker-mix-scale; do
   loops=51                    # 102 000 evaluations
   case $env in bipedal-*) loops=6 ;; esac   # 12 000 evaluations
@@ -35,3 +28,14 @@ for env in striker striker-mix-scale bipedal-walker bipedal-walker-mix-scale bip
     $fo experiments/$env/ps-uniform.toml --workers $w --repeat 2 --set experiment.loops=$loops
   done
 done
+for env in striker bipedal-walker; do
+  loops=11
+  case $env in bipedal-*) loops=3 ;; esac
+  $fo experiments/$env/iso.toml --workers 1 --repeat 2 --set experiment.loops=$loops
+done
+echo "# the framework's floor: analytic arm (12 us episodes), 32x32 policy (1379 parameters), 1 worker"
+for exp in arm-uniform arm-iso; do
+  $fo bench/experiments/$exp.toml --repeat 5                                              # 1 002 000 evaluations, 50 steps
+done
+echo "# autoencoder training (plugins/autoencoder/bench)"
+build/bin/autoencoder_bench

@@ -370,6 +370,77 @@ class Scene {
     return reward;
   }
 
+  SceneFacts facts() const {
+    SceneFacts f;
+    f.gravity_y = world_.GetGravity().y;
+    f.allow_sleep = world_.GetAllowSleeping();
+    auto body = [](const b2Body* b, BodyFacts& out) {
+      out.x = b->GetPosition().x;
+      out.y = b->GetPosition().y;
+      out.angle = b->GetAngle();
+      out.mass = b->GetMass();
+      out.linear_damping = b->GetLinearDamping();
+      out.dynamic = b->GetType() == b2_dynamicBody;
+      for (const b2Fixture* fx = b->GetFixtureList(); fx != nullptr; fx = fx->GetNext()) {
+        ++out.fixtures;
+        out.density = fx->GetDensity();
+        out.friction = fx->GetFriction();
+        out.restitution = fx->GetRestitution();
+        out.category = fx->GetFilterData().categoryBits;
+        out.mask = fx->GetFilterData().maskBits;
+      }
+    };
+    body(hull_, f.hull);
+    for (int k = 0; k < 4; ++k) body(legs_[k], f.legs[k]);
+    if (ball_ != nullptr) body(ball_, f.ball);
+    const b2Body* index[5] = {hull_, legs_[0], legs_[1], legs_[2], legs_[3]};
+    auto which = [&](const b2Body* b) {
+      for (int k = 0; k < 5; ++k)
+        if (index[k] == b) return k;
+      return -1;
+    };
+    for (int j = 0; j < 4; ++j) {
+      b2RevoluteJoint* joint = joints_[j];  // GetBodyA() is not const in Box2D 2.4.1
+      JointFacts& out = f.joints[j];
+      out.anchor_a[0] = joint->GetLocalAnchorA().x;
+      out.anchor_a[1] = joint->GetLocalAnchorA().y;
+      out.anchor_b[0] = joint->GetLocalAnchorB().x;
+      out.anchor_b[1] = joint->GetLocalAnchorB().y;
+      out.lower = joint->GetLowerLimit();
+      out.upper = joint->GetUpperLimit();
+      out.reference_angle = joint->GetReferenceAngle();
+      out.motor_speed = joint->GetMotorSpeed();
+      out.max_motor_torque = joint->GetMaxMotorTorque();
+      out.motor = joint->IsMotorEnabled();
+      out.limit = joint->IsLimitEnabled();
+      out.body_a = which(joint->GetBodyA());
+      out.body_b = which(joint->GetBodyB());
+    }
+    // Box2D prepends new bodies to the world's list, so the list runs newest first.
+    std::vector<const b2Body*> bodies;
+    for (const b2Body* b = world_.GetBodyList(); b != nullptr; b = b->GetNext()) bodies.push_back(b);
+    for (auto it = bodies.rbegin(); it != bodies.rend(); ++it) {
+      const b2Body* b = *it;
+      if (b->GetType() == b2_dynamicBody) {
+        f.creation_order.push_back(b == ball_ ? 5 : which(b));
+        continue;
+      }
+      const b2Fixture* fx = b->GetFixtureList();
+      const b2EdgeShape* edge = static_cast<const b2EdgeShape*>(fx->GetShape());
+      ++f.terrain_bodies;
+      f.terrain_friction = fx->GetFriction();
+      f.terrain_category = fx->GetFilterData().categoryBits;
+      f.terrain_mask = fx->GetFilterData().maskBits;
+      f.terrain_x.push_back(edge->m_vertex1.x);
+      f.terrain_y.push_back(edge->m_vertex1.y);
+      if (f.terrain_bodies == kTerrainLength - 1) {
+        f.terrain_x.push_back(edge->m_vertex2.x);
+        f.terrain_y.push_back(edge->m_vertex2.y);
+      }
+    }
+    return f;
+  }
+
   void record(Trace& trace, const float* action) const {
     const b2Vec2 pos = hull_->GetPosition();
     const b2Vec2 vel = hull_->GetLinearVelocity();
@@ -429,6 +500,13 @@ void warm_up_box2d() {
     world.CreateBody(&ball_def)->CreateFixture(&circle, 1.0f);
     world.Step(kTimeStep, 8, 3);
   });
+}
+
+SceneFacts scene_facts(Task task) {
+  EpisodeOptions options;
+  options.task = task;
+  const Scene scene(options);
+  return scene.facts();
 }
 
 void run_episode(const EpisodeOptions& options, Policy& policy, Trace& trace, std::vector<float>* observations) {

@@ -87,6 +87,34 @@ const std::array<double, kTerrainLength>& walker_terrain_heights() noexcept;
 void run_episode(const EpisodeOptions& options, Policy& policy, Trace& trace,
                  std::vector<float>* observations = nullptr);
 
+// Static facts of the scene an episode builds (after construction, before the reset step), for
+// the audit tests against the reference sources: body placement, mass properties, filters, joints.
+struct BodyFacts {
+  double x = 0.0, y = 0.0, angle = 0.0, mass = 0.0, linear_damping = 0.0;
+  double density = 0.0, friction = 0.0, restitution = 0.0;
+  std::uint16_t category = 0, mask = 0;
+  int fixtures = 0;
+  bool dynamic = false;
+};
+struct JointFacts {
+  double anchor_a[2] = {0.0, 0.0}, anchor_b[2] = {0.0, 0.0};  // local anchors
+  double lower = 0.0, upper = 0.0, reference_angle = 0.0, motor_speed = 0.0, max_motor_torque = 0.0;
+  bool motor = false, limit = false;
+  int body_a = -1, body_b = -1;  // 0 hull, 1..4 legs[0..3]
+};
+struct SceneFacts {
+  double gravity_y = 0.0;
+  bool allow_sleep = false;
+  int terrain_bodies = 0;         // static bodies with one edge each
+  double terrain_friction = 0.0;  // of every edge (all equal)
+  std::uint16_t terrain_category = 0, terrain_mask = 0;
+  std::vector<double> terrain_x, terrain_y;  // edge start points, then the last end point (200 points)
+  BodyFacts hull, legs[4], ball;             // ball: kicker only (fixtures = 0 otherwise)
+  JointFacts joints[4];                      // hip L, knee L, hip R, knee R
+  std::vector<int> creation_order;           // dynamic bodies in creation order: 0 hull, 1..4 legs, 5 ball
+};
+SceneFacts scene_facts(Task task);
+
 // Box2D 2.4.1 initialises its contact registry lazily on the first contact ever made, without a
 // lock. Called from the environment constructors (main thread) so workers never race on it.
 void warm_up_box2d();

@@ -26,8 +26,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "experiments"))
 from paper_table import load as load_experiment  # noqa: E402  (an experiment file with its includes, as qdrun merges them)
 
 SPEC = re.compile(r"\bspec(?:\s+sections?)?\s*(?:§\s*)?\d+(?:\.\d+)*|\(spec\)|poms-reference\.md", re.IGNORECASE)
-# Markdown being revised on another branch; remove the entry when that branch is merged.
-SPEC_PENDING = {"environments/bipedal/README.md"}
 SKIP_DIRS = {".git", "__pycache__"}
 failures = []
 
@@ -88,8 +86,6 @@ def check_spec_references(root):
     targets += [root / "share" / "qdplot", root / "share" / "qdreport"]
     for path in targets:
         rel = str(path.relative_to(root))
-        if rel in SPEC_PENDING:
-            continue
         for n, line in enumerate(path.read_text().splitlines(), 1):
             m = SPEC.search(line)
             if m:

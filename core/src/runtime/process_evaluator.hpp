@@ -1,6 +1,6 @@
 // Local worker processes: forked once after setup (plugins loaded, components built), so each has
 // its own copy of the environment and of Box2D's unsynchronised global counters, which make threads
-// scale badly (see README, "Parallel evaluation"). The parameter batch, the episode seeds and the
+// scale badly (docs/user-guide.md, "Parallel evaluation"). The parameter batch, the episode seeds and the
 // per-offspring result records live in one shared anonymous mapping; workers claim chunks of rows
 // from an atomic counter there (dynamic load balancing), and the parent works too.
 //

@@ -9,8 +9,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <map>
 #include <set>
 #include <sstream>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -66,21 +69,35 @@ TEST(BipedalPolicy, ParamCounts) {
   EXPECT_EQ(qd::PolicyShape(30, {32, 32}, 4).param_count(), 2180u);
 }
 
-// ---- Terrain (Appendix A, structural facts) ------------------------------------------------------
+// ---- Terrain (the reference's heights, structural facts) -----------------------------------------
 
 TEST(BipedalTerrain, StructuralFacts) {
   const auto& h = qd::bipedal::walker_terrain_heights();
   ASSERT_EQ(h.size(), 200u);
   for (int i = 0; i <= 20; ++i) EXPECT_NEAR(h[i], 3.333333, 1e-6) << i;
-  EXPECT_DOUBLE_EQ(*std::min_element(h.begin(), h.end()), 2.963666);
-  EXPECT_DOUBLE_EQ(*std::max_element(h.begin(), h.end()), 3.595202);
-  EXPECT_DOUBLE_EQ(h[100], 3.423785);
+  EXPECT_NEAR(*std::min_element(h.begin(), h.end()), 2.963666, 5e-7);
+  EXPECT_NEAR(*std::max_element(h.begin(), h.end()), 3.595202, 5e-7);
+  EXPECT_NEAR(h[100], 3.423785, 5e-7);
   // A point right after a counter reset repeats the previous height; no other point does.
   const int resets[] = {19,  26,  32,  37,  44,  51,  60,  68,  76,  82,  89,  95,  104,
                         113, 118, 124, 130, 137, 145, 152, 160, 167, 175, 183, 189, 196};
   std::set<int> repeats;
   for (int r : resets) repeats.insert(r + 1);
   for (int i = 21; i < 200; ++i) EXPECT_EQ(h[i] == h[i - 1], repeats.count(i) == 1) << "i = " << i;
+}
+
+TEST(BipedalTerrain, FullPrecisionHeights) {
+  // gym 0.11 keeps the heights as Python floats (doubles) and Box2D rounds each to float32. The
+  // values below were recomputed from gym 0.11's algorithm and seeding (numpy legacy MT19937 seeded
+  // with [4147133540, 85405754]); a table rounded to 6 decimals moves 135 of the 200 float32
+  // points by a few ulps.
+  const auto& h = qd::bipedal::walker_terrain_heights();
+  EXPECT_EQ(h[0], 400.0 / 30.0 / 4.0);
+  EXPECT_EQ(h[21], 3.3491985708930807);
+  EXPECT_EQ(h[100], 3.42378544753831);
+  EXPECT_EQ(h[177], 2.9636658252286603);
+  EXPECT_EQ(h[199], 3.431130367014732);
+  EXPECT_EQ(static_cast<float>(h[21]), 3.3491985708930807f);
 }
 
 // ---- First observation -------------------------------------------------------------------------
@@ -511,6 +528,208 @@ TEST(BipedalDescriptors, Conform) {
   const qd::testing::Report report =
       qd::testing::check_descriptor(qd::bipedal::KickerBallDescriptor(qd::Config("descriptor"), {}), kicks);
   EXPECT_TRUE(report.ok()) << report;
+// ---- Audit against the paper and the reference sources (README "Audit") ---------------------------
+
+constexpr double kThird = 1.0 / 3.0;
+
+TEST(BipedalAudit, WorldAndTerrain) {
+  for (Task task : {Task::kWalker, Task::kKicker}) {
+    SCOPED_TRACE(task == Task::kWalker ? "walker" : "kicker");
+    const qd::bipedal::SceneFacts f = qd::bipedal::scene_facts(task);
+    EXPECT_EQ(f.gravity_y, -10.0);
+    EXPECT_TRUE(f.allow_sleep);
+    EXPECT_EQ(f.terrain_bodies, 199);  // one static body per edge, not a chain
+    EXPECT_FLOAT_EQ(f.terrain_friction, task == Task::kWalker ? 2.5 : 0.9);
+    EXPECT_EQ(f.terrain_category, 0x0001);
+    EXPECT_EQ(f.terrain_mask, 0xFFFF);
+    ASSERT_EQ(f.terrain_x.size(), 200u);
+    const auto& h = qd::bipedal::walker_terrain_heights();
+    for (std::size_t i = 0; i < 200; ++i) {
+      EXPECT_FLOAT_EQ(f.terrain_x[i], static_cast<float>(i * 14.0 / 30.0)) << i;
+      EXPECT_FLOAT_EQ(f.terrain_y[i], static_cast<float>(task == Task::kWalker ? h[i] : 10.0 / 3.0)) << i;
+    }
+  }
+}
+
+TEST(BipedalAudit, HullAndLegGeometry) {
+  for (Task task : {Task::kWalker, Task::kKicker}) {
+    SCOPED_TRACE(task == Task::kWalker ? "walker" : "kicker");
+    const qd::bipedal::SceneFacts f = qd::bipedal::scene_facts(task);
+    const double x0 = task == Task::kWalker ? 14.0 / 30.0 * 100 : 14.0 / 30.0 * 95;
+    const std::uint16_t category = task == Task::kWalker ? 0x0020 : 0x0002;
+    const std::uint16_t mask = task == Task::kWalker ? 0x0001 : 0x0005;
+    EXPECT_NEAR(f.hull.x, x0, 1e-5);
+    EXPECT_NEAR(f.hull.y, 10.0 / 3.0 + 2 * 34.0 / 30.0, 1e-6);  // 5.6
+    EXPECT_EQ(f.hull.angle, 0.0);
+    EXPECT_NEAR(f.hull.mass, 5.0 * 1.0844444, 1e-5);  // polygon area 1.0844, density 5
+    EXPECT_FLOAT_EQ(f.hull.friction, 0.1);
+    EXPECT_EQ(f.hull.restitution, 0.0);
+    EXPECT_EQ(f.hull.category, category);
+    EXPECT_EQ(f.hull.mask, mask);
+    for (int k = 0; k < 4; ++k) {
+      SCOPED_TRACE(k);
+      const qd::bipedal::BodyFacts& leg = f.legs[k];
+      const bool lower = (k % 2) == 1;
+      EXPECT_TRUE(leg.dynamic);
+      EXPECT_EQ(leg.fixtures, 1);
+      EXPECT_NEAR(leg.x, x0, 1e-5);
+      EXPECT_NEAR(leg.y, lower ? 5.6 - 1.5 * 34.0 / 30.0 + 8.0 / 30.0 : 5.6 - 17.0 / 30.0 + 8.0 / 30.0, 1e-6);
+      EXPECT_FLOAT_EQ(leg.angle, k < 2 ? -0.05 : 0.05);
+      EXPECT_NEAR(leg.mass, (lower ? 0.8 : 1.0) * 8.0 / 30.0 * 34.0 / 30.0, 1e-6);  // density 1
+      EXPECT_FLOAT_EQ(leg.friction, 0.2);                                           // Box2D default
+      EXPECT_EQ(leg.restitution, 0.0);
+      EXPECT_EQ(leg.category, category);
+      EXPECT_EQ(leg.mask, mask);
+    }
+    // Creation order (it fixes Box2D's body and contact order): terrain, hull, upper L, lower L,
+    // upper R, lower R, then the ball.
+    const std::vector<int> order =
+        task == Task::kWalker ? std::vector<int>{0, 1, 2, 3, 4} : std::vector<int>{0, 1, 2, 3, 4, 5};
+    EXPECT_EQ(f.creation_order, order);
+  }
+}
+
+TEST(BipedalAudit, JointsAndMotors) {
+  for (Task task : {Task::kWalker, Task::kKicker}) {
+    const qd::bipedal::SceneFacts f = qd::bipedal::scene_facts(task);
+    for (int j = 0; j < 4; ++j) {
+      SCOPED_TRACE(j);
+      const qd::bipedal::JointFacts& joint = f.joints[j];
+      const bool knee = (j % 2) == 1;
+      const int side = j < 2 ? -1 : 1;
+      EXPECT_EQ(joint.body_a, knee ? j : 0);  // hip: hull -> upper leg; knee: upper -> lower leg
+      EXPECT_EQ(joint.body_b, j + 1);
+      EXPECT_EQ(joint.anchor_a[0], 0.0);
+      EXPECT_FLOAT_EQ(joint.anchor_a[1], knee ? -17.0 / 30.0 : -8.0 / 30.0);
+      EXPECT_EQ(joint.anchor_b[0], 0.0);
+      EXPECT_FLOAT_EQ(joint.anchor_b[1], 17.0 / 30.0);
+      EXPECT_EQ(joint.reference_angle, 0.0);  // keyword-filled def, no Initialize
+      EXPECT_TRUE(joint.motor);
+      EXPECT_TRUE(joint.limit);
+      EXPECT_FLOAT_EQ(joint.lower, knee ? -1.6 : -0.8);
+      EXPECT_FLOAT_EQ(joint.upper, knee ? -0.1 : 1.1);
+      EXPECT_EQ(joint.max_motor_torque, 80.0);
+      EXPECT_EQ(joint.motor_speed, knee ? 1.0 : side);
+    }
+  }
+}
+
+TEST(BipedalAudit, BallOnlyInTheKicker) {
+  EXPECT_EQ(qd::bipedal::scene_facts(Task::kWalker).ball.fixtures, 0);
+  const qd::bipedal::BodyFacts ball = qd::bipedal::scene_facts(Task::kKicker).ball;
+  EXPECT_TRUE(ball.dynamic);
+  EXPECT_EQ(ball.fixtures, 1);
+  EXPECT_NEAR(ball.x, 14.0 / 30.0 * 100, 1e-5);
+  EXPECT_NEAR(ball.y, 10.0 / 3.0 + 2 * kThird, 1e-6);                            // TERRAIN_HEIGHT + 2 r = 4.0
+  EXPECT_NEAR(ball.mass, 0.5 * 3.14159265358979323846 * kThird * kThird, 1e-6);  // r = 10/30, density 0.5
+  EXPECT_FLOAT_EQ(ball.friction, 0.1);
+  EXPECT_FLOAT_EQ(ball.restitution, 0.7);
+  EXPECT_EQ(ball.linear_damping, 1.0);
+  EXPECT_EQ(ball.category, 0x0004);
+  EXPECT_EQ(ball.mask, 0x0003);
+}
+
+TEST(BipedalAudit, InitialPushOnlyInTheWalker) {
+  // The reset step runs with limp joints; the hull's horizontal speed after it differs between
+  // the two tasks only by the walker's push of +2.3627539 N for one step (0.02 s), shared with
+  // the legs through the joints: dv lies between F dt / (all five bodies) and F dt / hull.
+  const Episode walker = run(Task::kWalker, std::vector<double>(2052, 0.0), false, 1);
+  const Episode kicker = run(Task::kKicker, std::vector<double>(2180, 0.0), false, 1);
+  const double dv = (walker.observations[2] - kicker.observations[2]) / 0.12;
+  const double impulse = 2.3627539207 * 0.02;
+  EXPECT_GT(dv, impulse / (5.4222 + 2 * (0.30222 + 0.24178)) * 0.99);
+  EXPECT_LT(dv, impulse / 5.4222 * 1.01);
+}
+
+TEST(BipedalAudit, KickerLidarOnFlatGround) {
+  // Ten rays from the hull origin along (sin a, -cos a), a = 1.5 i / 10, of length 160/30; only
+  // the ground (category 1) is seen, so on flat ground the fraction is drop / (cos a * 160/30).
+  const Episode e = run(Task::kKicker, std::vector<double>(2180, 0.0), false, 1);
+  const float* obs = e.observations.data();
+  const double drop = obs[25] - 10.0 / 3.0;
+  int hits = 0;
+  for (int i = 0; i < 10; ++i) {
+    const double reach = std::cos(1.5 * i / 10.0) * 160.0 / 30.0;
+    const double expected = drop <= reach ? drop / reach : 1.0;
+    hits += drop <= reach ? 1 : 0;
+    EXPECT_NEAR(obs[14 + i], expected, 2e-5) << "ray " << i;
+  }
+  EXPECT_EQ(hits, 8);  // rays 8 and 9 are too flat to reach the ground from 5.6
+}
+
+TEST(BipedalAudit, LidarRaysCrossTheWalkerTerrainAtMostOnce) {
+  // The reference's lidar callback returns 0 (the first ground hit Box2D reports ends the ray),
+  // ours returns the fraction (the closest hit). They agree when a ray cannot cross the ground
+  // twice: every ray descends at least cot(1.35) = 0.224 per unit of x (ray 9, the flattest), so
+  // it stays below the ground once under it if no terrain edge descends faster than that.
+  const auto& h = qd::bipedal::walker_terrain_heights();
+  const double steepest_ray = std::cos(1.35) / std::sin(1.35);
+  double steepest_descent = 0.0;
+  for (std::size_t i = 0; i + 1 < h.size(); ++i)
+    steepest_descent = std::max(steepest_descent, (h[i] - h[i + 1]) / (14.0 / 30.0));
+  EXPECT_NEAR(steepest_descent, 0.1667, 1e-4);
+  EXPECT_LT(steepest_descent, steepest_ray);
+}
+
+// Known answer: the distribution of cells of a fixed set of U(-1, 1) policies (hidden [32, 32]).
+// It pins the dynamics as a whole: a change of engine, geometry, contact rules, termination or
+// binning moves it. Values measured with Debian's Box2D 2.4.1 on x86-64.
+struct Distribution {
+  int distinct = 0;
+  int most_common_cell = -1;
+  int most_common_count = 0;
+  int terminations[9] = {};
+  std::uint64_t hash = 1469598103934665603ull;  // FNV-1a over the sorted (cell, count) pairs
+};
+
+Distribution cell_distribution(Task task, int n) {
+  std::map<std::int64_t, int> counts;
+  Distribution d;
+  for (int k = 0; k < n; ++k) {
+    const Episode e = run(task, random_params(task, 5000 + static_cast<std::uint64_t>(k)));
+    double v[4];
+    const std::int64_t cell = task == Task::kWalker ? qd::bipedal::walker_gait_cell(e.trace, false, v)
+                                                    : qd::bipedal::kicker_ball_cell(e.trace, v);
+    ++counts[cell];
+    ++d.terminations[e.trace.events.at(0)];
+  }
+  d.distinct = static_cast<int>(counts.size());
+  for (const auto& [cell, count] : counts) {
+    if (count > d.most_common_count) {
+      d.most_common_count = count;
+      d.most_common_cell = static_cast<int>(cell);
+    }
+    for (std::int64_t word : {cell, static_cast<std::int64_t>(count)}) {
+      for (int b = 0; b < 8; ++b) {
+        d.hash ^= static_cast<std::uint64_t>(word >> (8 * b)) & 0xFF;
+        d.hash *= 1099511628211ull;
+      }
+    }
+  }
+  return d;
+}
+
+std::string describe(const Distribution& d) {
+  std::ostringstream s;
+  s << "distinct " << d.distinct << ", most common cell " << d.most_common_cell << " x" << d.most_common_count
+    << ", terminations";
+  for (int t : d.terminations) s << ' ' << t;
+  s << ", hash 0x" << std::hex << d.hash;
+  return s.str();
+}
+
+TEST(BipedalKnownAnswer, WalkerCellDistributionOf200RandomPolicies) {
+  const Distribution d = cell_distribution(Task::kWalker, 200);
+  EXPECT_EQ(describe(d),
+            "distinct 96, most common cell 3749 x22, terminations 2 141 0 0 57 0 0 0 0, hash 0xee491738aaf5c6bd")
+      << describe(d);
+}
+
+TEST(BipedalKnownAnswer, KickerCellDistributionOf200RandomPolicies) {
+  const Distribution d = cell_distribution(Task::kKicker, 200);
+  EXPECT_EQ(describe(d),
+            "distinct 28, most common cell 0 x151, terminations 0 0 0 0 0 20 143 37 0, hash 0x9e4fda8c8a0b4ad0")
+      << describe(d);
 }
 
 TEST(BipedalEnvironment, InfoAndSvg) {
