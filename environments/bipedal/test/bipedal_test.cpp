@@ -528,6 +528,8 @@ TEST(BipedalDescriptors, Conform) {
   const qd::testing::Report report =
       qd::testing::check_descriptor(qd::bipedal::KickerBallDescriptor(qd::Config("descriptor"), {}), kicks);
   EXPECT_TRUE(report.ok()) << report;
+}
+
 // ---- Audit against the paper and the reference sources (README "Audit") ---------------------------
 
 constexpr double kThird = 1.0 / 3.0;
