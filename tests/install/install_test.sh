@@ -21,7 +21,7 @@ grep -q "100% tests passed" "$work.ctest.log" || { cat "$work.ctest.log"; fail "
 # target; qd_add_plugin applies them to the plugin, optimised when the project chose no build type,
 # and leaves a build type the project chose alone.
 targets=$(find "$work/prefix" -name qdTargets.cmake)
-arch=$(sed -n 's/^ *QD_ARCH_FLAGS "\(.*\)"$/\1/p' "$targets")
+arch=$(sed -n 's/^ *QD_ARCH_FLAGS "\(.*\)"$/\1/p' "$targets" | tr ';' ' ')  # a CMake list
 grep -q INTERFACE_COMPILE_OPTIONS "$targets" && fail "an installed target exports compile options: $targets"
 compile_command() { grep "\"command\":.*/$2\"" "$1/compile_commands.json"; }
 for file in half_step.cpp half_step_test.cpp; do  # the plugin, and its test (qd_use_core_flags)
