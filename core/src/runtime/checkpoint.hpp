@@ -38,6 +38,9 @@
 
 namespace qd::runtime {
 
+// CRC-32C (Castagnoli, as in iSCSI and ext4) of size bytes.
+std::uint32_t crc32c(const char* bytes, std::size_t size);
+
 struct CheckpointCounters {
   int loop = -1;  // the last loop the checkpoint completes
   std::uint64_t evaluations = 0;
