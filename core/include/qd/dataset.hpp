@@ -12,7 +12,6 @@
 #include <Eigen/Core>
 
 #include <cstdint>
-#include <iosfwd>
 #include <unordered_set>
 #include <vector>
 
@@ -35,9 +34,6 @@ class QD_EXPORT Dataset {
   }
   const std::vector<std::int64_t>& cells() const noexcept { return cells_; }
   const std::vector<int>& loops() const noexcept { return loops_; }
-
-  void save(std::ostream& out) const;
-  void load(std::istream& in);
 
  private:
   std::size_t param_count_;
