@@ -9,8 +9,10 @@
 # Hashed: archive.csv byte for byte; metrics.csv and training.csv without their wall-clock
 # columns. Floating-point results depend on the instruction set the build uses (Eigen's packet size
 # changes summation order, FMA contraction rounding), so hashes are kept per instruction-set level
-# (QD_ARCH=level: x86-64-v4.sha256, x86-64-v3.sha256, ...); a build with no file (QD_ARCH=native,
-# another CPU family) is reported as skipped, never as passed.
+# and build variant, which ctest passes in QD_GOLDEN_VARIANT (QD_ARCH=level: x86-64-v4.sha256 for
+# Release, x86-64-v4-relwithdebinfo-sanitize.sha256 for scripts/test.sh --sanitize, ...); a build
+# with no file (QD_ARCH=native, another CPU family, a Debug build) is reported as skipped, never as
+# passed. To update a variant's file: QD_GOLDEN_VARIANT=<variant> tests/golden/golden.sh ... --update
 source "$(cd "$(dirname "$0")/../e2e" && pwd)/lib.sh"
 qdrun=$1 out=$2 mode=${3:-check}
 root=$(cd "$(dirname "$0")/../.." && pwd)
@@ -47,7 +49,7 @@ for entry in "${runs[@]}"; do
   } >> "$hashes"
 done
 class=$(sed -n 's/^instruction_set = "-march=\([^ "]*\).*/\1/p' "$(run_dir "$out/iso")/provenance.toml")
-class=${class:-none}
+class=${class:-none}${QD_GOLDEN_VARIANT:-}
 expected=$root/tests/golden/$class.sha256
 if [ "$mode" = "--update" ]; then
   cp "$hashes" "$expected"

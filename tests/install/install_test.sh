@@ -4,12 +4,18 @@
 # both were compiled, and runs the plugin through the installed qdrun.
 set -euo pipefail
 build=$1 src=$2 work=$3
+# A sanitizer build's libqd_core needs the sanitizer runtime in every program that links it.
+consumer_flags=()
+if [ "${4:-}" = sanitize ]; then
+  san=-fsanitize=address,undefined
+  consumer_flags=(-DCMAKE_CXX_FLAGS=$san -DCMAKE_EXE_LINKER_FLAGS=$san -DCMAKE_MODULE_LINKER_FLAGS=$san)
+fi
 rm -rf "$work"
 cmake --install "$build" --prefix "$work/prefix" > "$work.install.log" 2>&1 || { cat "$work.install.log"; exit 1; }
 fail() { echo "FAIL: $*"; exit 1; }
 # No build type: the example's CMakeLists.txt is the README's four lines, which set none.
 cmake -S "$src/example" -B "$work/example-build" -G Ninja -DCMAKE_PREFIX_PATH="$work/prefix" \
-      -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF -DCMAKE_EXPORT_COMPILE_COMMANDS=ON \
+      -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF -DCMAKE_EXPORT_COMPILE_COMMANDS=ON "${consumer_flags[@]}" \
       > "$work.configure.log" 2>&1 || { cat "$work.configure.log"; exit 1; }
 cmake --build "$work/example-build" > "$work.build.log" 2>&1 || { cat "$work.build.log"; exit 1; }
 test -f "$work/example-build/qd_half_step.so"
@@ -30,7 +36,7 @@ for file in half_step.cpp half_step_test.cpp; do  # the plugin, and its test (qd
   for flag in $arch; do grep -q -- " $flag " <<< "$cmd" || fail "$file was compiled without the core's $flag: $cmd"; done
 done
 cmake -S "$src/example" -B "$work/example-debug" -G Ninja -DCMAKE_PREFIX_PATH="$work/prefix" \
-      -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF -DCMAKE_EXPORT_COMPILE_COMMANDS=ON -DCMAKE_BUILD_TYPE=Debug \
+      -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF -DCMAKE_EXPORT_COMPILE_COMMANDS=ON -DCMAKE_BUILD_TYPE=Debug "${consumer_flags[@]}" \
       > "$work.configure-debug.log" 2>&1 || { cat "$work.configure-debug.log"; exit 1; }
 cmd=$(compile_command "$work/example-debug" half_step.cpp)
 grep -qE -- ' -O[1-3s]? ' <<< "$cmd" && fail "a Debug build of the plugin was optimised: $cmd"
