@@ -1,4 +1,4 @@
-// Known-answer and statistical tests of the partner pairing of Iso+LineDD (spec 4.2), shared by the
+// Known-answer and statistical tests of the partner pairing of Iso+LineDD (plugins/line_dd/README.md), shared by the
 // line_dd and dde plugins.
 #include "line_dd_ops.hpp"
 
