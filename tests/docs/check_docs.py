@@ -9,7 +9,7 @@
   * A code block preceded by `<!-- file: PATH -->` is exactly the file PATH (so the README's plugin
     is the one tests/install builds, and the plugin guide's example the one tests/docs builds).
   * No "spec N.N" reference to a document users do not have, in any Markdown file, experiment file,
-    qdplot or qdreport, or in qdrun's --list and --describe output.
+    source file or script, qdplot or qdreport, or in qdrun's --list and --describe output.
   * The algorithm table, share/algorithms.toml, is the only one: the README's table lists its
     entries with the same representation and mutator, every experiments/<variant>/<name>.toml of the
     paper's variants holds the (representation, mutator, initial) of its entry, and qdplot and
@@ -84,6 +84,9 @@ def check_links_and_blocks(root):
 def check_spec_references(root):
     targets = list(files(root, "*.md")) + list(files(root / "experiments", "*.toml"))
     targets += [root / "share" / "qdplot", root / "share" / "qdreport"]
+    # Code comments too: a reader of the sources cannot follow a reference to a document they lack.
+    for pattern in ("*.cpp", "*.hpp", "*.py", "*.sh", "CMakeLists.txt"):
+        targets += [p for p in files(root, pattern) if p.resolve() != Path(__file__).resolve()]
     for path in targets:
         rel = str(path.relative_to(root))
         for n, line in enumerate(path.read_text().splitlines(), 1):
