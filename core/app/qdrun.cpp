@@ -64,15 +64,21 @@ std::vector<std::string> split_path_list(const char* text) {
   return out;
 }
 
-// Search order, first hit wins: --plugin-path, QD_PLUGIN_PATH, [plugins] path, the install
-// location next to the executable, the build tree.
-void setup_registry(Registry& reg, const Cli& cli, const std::vector<std::string>& from_file) {
+// Search order, first hit wins: --plugin-path, QD_PLUGIN_PATH, [plugins] path, the directories a
+// run directory's config.toml recorded ([plugins] search_path, for --resume and friends), then
+// qdrun's own plugin directory (<prefix>/lib/qd/plugins; the build tree's only for the qdrun that
+// runs from it). Shadowed component names are reported on stderr.
+void setup_registry(Registry& reg, const Cli& cli, const std::vector<std::string>& from_file,
+                    const std::vector<std::string>& recorded = {}) {
   for (const auto& p : cli.plugin_paths) reg.add_search_dir(p);
   for (const auto& p : split_path_list(std::getenv("QD_PLUGIN_PATH"))) reg.add_search_dir(p);
   for (const auto& p : from_file) reg.add_search_dir(p);
-  reg.add_search_dir(installed_plugin_dir());
-  reg.add_search_dir(build_tree_plugin_dir());
+  for (const auto& p : recorded) reg.add_search_dir(p);
+  reg.add_search_dir(installed_plugin_dir(), DirOrigin::kOwn);
+  reg.add_search_dir(build_tree_plugin_dir(), DirOrigin::kOwn);
   reg.discover();
+  if (!cli.quiet)
+    for (const auto& w : reg.warnings()) std::fprintf(stderr, "qdrun: warning: %s\n", w.c_str());
 }
 
 int list_components(const Registry& reg) {
