@@ -64,15 +64,21 @@ std::vector<std::string> split_path_list(const char* text) {
   return out;
 }
 
-// Search order, first hit wins: --plugin-path, QD_PLUGIN_PATH, [plugins] path, the install
-// location next to the executable, the build tree.
-void setup_registry(Registry& reg, const Cli& cli, const std::vector<std::string>& from_file) {
+// Search order, first hit wins: --plugin-path, QD_PLUGIN_PATH, [plugins] path, the directories a
+// run directory's config.toml recorded ([plugins] search_path, for --resume and friends), then
+// qdrun's own plugin directory (<prefix>/lib/qd/plugins; the build tree's only for the qdrun that
+// runs from it). Shadowed component names are reported on stderr.
+void setup_registry(Registry& reg, const Cli& cli, const std::vector<std::string>& from_file,
+                    const std::vector<std::string>& recorded = {}) {
   for (const auto& p : cli.plugin_paths) reg.add_search_dir(p);
   for (const auto& p : split_path_list(std::getenv("QD_PLUGIN_PATH"))) reg.add_search_dir(p);
   for (const auto& p : from_file) reg.add_search_dir(p);
-  reg.add_search_dir(installed_plugin_dir());
-  reg.add_search_dir(build_tree_plugin_dir());
+  for (const auto& p : recorded) reg.add_search_dir(p);
+  reg.add_search_dir(installed_plugin_dir(), DirOrigin::kOwn);
+  reg.add_search_dir(build_tree_plugin_dir(), DirOrigin::kOwn);
   reg.discover();
+  if (!cli.quiet)
+    for (const auto& w : reg.warnings()) std::fprintf(stderr, "qdrun: warning: %s\n", w.c_str());
 }
 
 int list_components(const Registry& reg) {
@@ -100,10 +106,16 @@ int describe(const Registry& reg, const std::string& name) {
       return kExitOk;
     }
   }
+  if (const std::string text = describe_table(name, reg); !text.empty()) {
+    std::printf("%s", text.c_str());
+    return kExitOk;
+  }
   const ComponentEntry* e = reg.find(name);
   if (!e) {
     std::string known;
     for (const auto& t : core_tables()) known += std::string(known.empty() ? "" : ", ") + t.name;
+    for (const char* t : {"plugins", "environment", "descriptor", "representation", "mutator", "initial"})
+      known += ", " + std::string(t);
     for (const auto& c : reg.components()) known += ", " + std::string(c.info->name);
     throw InputError("--describe: unknown component or table '" + name + "'; known: " + known);
   }
@@ -112,6 +124,27 @@ int describe(const Registry& reg, const std::string& name) {
               e->plugin->info->plugin_version, e->plugin->path.c_str(), e->info->name,
               describe_params(e->info->params, e->info->param_count).c_str());
   return kExitOk;
+}
+
+// Runs `build` (resolving a run directory's configuration and building its components); when a
+// component cannot be found, the error also says which library the run used and where it was.
+template <class F>
+auto with_plugin_hint(const fs::path& dir, const Registry& reg, F&& build) -> decltype(build()) {
+  try {
+    return build();
+  } catch (const InputError& e) {
+    const std::string hint = missing_plugin_hint(dir, reg);
+    if (hint.empty()) throw;
+    std::string msg = e.what();
+    const auto first_line_end = msg.find('\n');
+    msg.insert(first_line_end == std::string::npos ? msg.size() : first_line_end, "; " + hint);
+    throw InputError(msg);
+  }
+}
+
+void print_notes(const Cli& cli, const Experiment& ex) {
+  if (cli.quiet) return;
+  for (const auto& n : ex.notes) std::fprintf(stderr, "qdrun: note: %s\n", n.c_str());
 }
 
 int run_one(const Cli& cli, const std::string& command_line) {
@@ -137,8 +170,12 @@ int run_one(const Cli& cli, const std::string& command_line) {
     if (!cli.output.empty()) doc.apply_override("output.dir=\"" + cli.output + "\"");
   }
   Registry reg;
-  setup_registry(reg, cli, doc.plugin_paths());
-  Experiment ex = resolve(doc, reg);
+  setup_registry(reg, cli, doc.plugin_paths(), doc.recorded_search_path());
+  // On --resume a component that cannot be found is reported with the library the run used.
+  const fs::path hint_dir = cli.resume.empty() ? fs::path() : fs::path(cli.resume);
+  auto build = [&](auto&& f) { return hint_dir.empty() ? f() : with_plugin_hint(hint_dir, reg, f); };
+  Experiment ex = build([&] { return resolve(doc, reg); });
+  print_notes(cli, ex);
   opt.workers = cli.workers;
   opt.stop_after_loop = cli.stop_after_loop;
   opt.command_line = command_line;
@@ -151,11 +188,12 @@ int run_one(const Cli& cli, const std::string& command_line) {
   if (mpi_rank() > 0) {
     // An MPI worker rank: same experiment, no files, no output; it serves rank 0 until stopped.
     opt.on_progress = nullptr;
-    Run worker(std::move(ex), reg, std::move(opt));
-    worker.serve();
+    const auto worker = build([&] { return std::make_unique<Run>(std::move(ex), reg, std::move(opt)); });
+    worker->serve();
     return kExitOk;
   }
-  Run run(std::move(ex), reg, std::move(opt));
+  const auto owned = build([&] { return std::make_unique<Run>(std::move(ex), reg, std::move(opt)); });
+  Run& run = *owned;
   if (!cli.resume.empty())
     run.open_for_resume();
   else
@@ -193,11 +231,11 @@ int replay_all(const Cli& cli);
 std::unique_ptr<Run> open_run_directory(const Cli& cli, const fs::path& dir, Registry& reg, int workers) {
   if (!fs::exists(dir / "config.toml")) throw InputError(dir.string() + ": not a run directory (no config.toml)");
   Document doc = Document::read(dir / "config.toml");
-  setup_registry(reg, cli, doc.plugin_paths());
+  setup_registry(reg, cli, doc.plugin_paths(), doc.recorded_search_path());
   RunOptions opt;
   opt.directory = dir.string();
   opt.workers = workers;
-  return std::make_unique<Run>(resolve(doc, reg), reg, std::move(opt));
+  return with_plugin_hint(dir, reg, [&] { return std::make_unique<Run>(resolve(doc, reg), reg, std::move(opt)); });
 }
 
 int replay(const Cli& cli) {
@@ -286,7 +324,7 @@ int qdrun_main(int argc, char** argv) {
     ("resume", po::value(&cli.resume), "continue the run in this run directory from its last checkpoint")
     ("quiet,q", po::bool_switch(&cli.quiet), "print nothing but errors")
     ("list", po::bool_switch(&cli.list), "list every available component with its plugin library and version")
-    ("describe", po::value(&cli.describe), "print the parameters of a component or core table (experiment, policy, output, evaluation)")
+    ("describe", po::value(&cli.describe), "print the parameters of a component or of a table (experiment, policy, output, evaluation, plugins, environment, descriptor, representation, mutator, initial)")
     ("plugin-path", po::value(&cli.plugin_paths)->composing(), "extra plugin directory, searched first (repeatable)")
     ("stop-after-loop", po::value(&cli.stop_after_loop), "stop cleanly after this loop's checkpoint (for time-sliced jobs)")
     ("replay", po::value(&cli.replay), "re-run one elite of a finished run and draw it: --replay RUN_DIR --cell N [--svg FILE]")
@@ -323,8 +361,9 @@ int qdrun_main(int argc, char** argv) {
                       cli.latents.empty();
     if (mpi_rank() > 0 && !runs) return kExitOk;
     if (vm.count("help")) {
-      std::cout << visible << "\nPlugins are searched in --plugin-path, QD_PLUGIN_PATH, [plugins] path,\n"
-                << "<prefix>/lib/qd/plugins and the build tree. See README.md.\n";
+      std::cout << visible << "\nPlugins are searched in --plugin-path, QD_PLUGIN_PATH, [plugins] path (and, for\n"
+                << "a run directory, the directories its config.toml recorded), then <prefix>/lib/qd/plugins.\n"
+                << "See docs/user-guide.md.\n";
       return kExitOk;
     }
     if (cli.version) {
@@ -335,8 +374,13 @@ int qdrun_main(int argc, char** argv) {
     if (cli.list || !cli.describe.empty()) {
       Registry reg;
       std::vector<std::string> from_file;
-      if (!cli.experiments.empty()) from_file = Document::read(cli.experiments.front()).plugin_paths();
-      setup_registry(reg, cli, from_file);
+      std::vector<std::string> recorded;
+      if (!cli.experiments.empty()) {
+        const Document doc = Document::read(cli.experiments.front());
+        from_file = doc.plugin_paths();
+        recorded = doc.recorded_search_path();
+      }
+      setup_registry(reg, cli, from_file, recorded);
       return cli.list ? list_components(reg) : describe(reg, cli.describe);
     }
     if (!cli.replay.empty()) return replay(cli);

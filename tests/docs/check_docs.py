@@ -144,7 +144,8 @@ def check_cli(qdrun):
     names = set(re.findall(r"^  (\S+) +\S", listing, re.MULTILINE))  # "  name   summary" under "kinds:" lines
     if len(names) < 10:
         fail(f"qdrun --list names only {sorted(names)}: its format changed? ({listing[:300]!r})")
-    for name in sorted(names) + ["experiment", "policy", "output", "evaluation"]:
+    for name in sorted(names) + ["experiment", "policy", "output", "evaluation", "plugins", "environment",
+                                 "descriptor", "representation", "mutator", "initial"]:
         p = subprocess.run([qdrun, "--describe", name], capture_output=True, text=True)
         if p.returncode != 0:
             fail(f"qdrun --describe {name}: exit code {p.returncode}: {p.stderr.strip()}")

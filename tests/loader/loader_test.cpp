@@ -7,6 +7,7 @@
 
 #include <boost/dll/shared_library.hpp>
 
+#include <algorithm>
 #include <string>
 
 using namespace qd;
@@ -81,10 +82,46 @@ TEST(Loader, RejectsMissingEntrySymbol) {
   EXPECT_NE(msg.find("qd_plugin_entry_v1"), std::string::npos) << msg;
 }
 
-TEST(Loader, RejectsFileThatIsNotASharedLibrary) {
+// A plugin built with the pre-C++11 std::string ABI is refused by its fingerprint.
+TEST(Loader, RejectsOldCxx11Abi) {
+  Registry reg;
+  const std::string msg = load_error(reg, plugin("old_abi"));
+  EXPECT_NE(msg.find("cxx11abi=0"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("plugin only: cxx11abi=0; core only: cxx11abi=1"), std::string::npos) << msg;
+}
+
+// Junk in a plugin directory is named with what is wrong with it, never with the I/O library's
+// "basic_ios::clear: iostream error".
+TEST(Loader, RejectsTextFileWithAClearReason) {
   Registry reg;
   const std::string msg = load_error(reg, plugin("garbage"));
-  EXPECT_NE(msg.find("not a loadable shared library"), std::string::npos) << msg;
+  EXPECT_EQ(msg, plugin("garbage").string() +
+                     ": is not a shared library (no ELF header: a text file or other junk named like a plugin)");
+}
+
+TEST(Loader, RejectsEmptyFile) {
+  Registry reg;
+  const std::string msg = load_error(reg, plugin("empty"));
+  EXPECT_EQ(msg, plugin("empty").string() + ": is an empty file, not a shared library");
+}
+
+TEST(Loader, RejectsTruncatedElfFile) {
+  Registry reg;
+  const std::string msg = load_error(reg, plugin("truncated"));
+  EXPECT_NE(msg.find("qd_truncated.so: not a loadable shared library (its ELF symbol table cannot be read"),
+            std::string::npos)
+      << msg;
+  EXPECT_EQ(msg.find("iostream"), std::string::npos) << msg;
+}
+
+// dlopen's own reason, the symbol demangled, instead of Boost's "Bad file descriptor".
+TEST(Loader, RejectsMissingSymbolNamingIt) {
+  Registry reg;
+  const std::string msg = load_error(reg, plugin("missing_symbol"));
+  EXPECT_NE(msg.find("qd_missing_symbol.so: cannot be loaded: undefined symbol qd_test_symbol_defined_nowhere(int)"),
+            std::string::npos)
+      << msg;
+  EXPECT_EQ(msg.find("Bad file descriptor"), std::string::npos) << msg;
 }
 
 TEST(Loader, RejectsFileNameThatDoesNotMatchPluginName) {
@@ -93,12 +130,83 @@ TEST(Loader, RejectsFileNameThatDoesNotMatchPluginName) {
   EXPECT_NE(msg.find("must be named qd_other_name.so"), std::string::npos) << msg;
 }
 
-TEST(Loader, RejectsDuplicateComponentAcrossLibraries) {
+// A name an earlier library provides is left out of the later one, with a warning naming both.
+TEST(Loader, DuplicateComponentAcrossLibrariesIsShadowed) {
   Registry reg;
   reg.load(plugin("good"));
-  const std::string msg = load_error(reg, plugin("duplicate"));
-  EXPECT_NE(msg.find("'test-counted' is already provided by"), std::string::npos) << msg;
-  EXPECT_NE(msg.find("qd_good.so"), std::string::npos) << msg;
+  EXPECT_EQ(load_error(reg, plugin("duplicate")), "");
+  EXPECT_NE(reg.find("test-counted")->plugin->path.find("qd_good.so"), std::string::npos);
+  ASSERT_EQ(reg.warnings().size(), 1u);
+  const std::string w = reg.warnings()[0];
+  EXPECT_EQ(w, fs::weakly_canonical(plugin("duplicate")).string() + ": 'test-counted' left out, already provided by " +
+                   fs::weakly_canonical(plugin("good")).string() +
+                   " (first in the plugin search path wins; the library's other components stay available)");
+}
+
+// Shadowing rejects the shared name only: the shadowed library's other components stay.
+TEST(Loader, ShadowingLeavesOutOnlyTheSharedName) {
+  Registry reg;
+  reg.add_search_dir(fs::path(QD_TEST_PLUGIN_ROOT) / "shadow");
+  reg.add_search_dir(fs::path(QD_TEST_PLUGIN_ROOT) / "good");
+  reg.discover();
+  EXPECT_TRUE(reg.rejected().empty());
+  EXPECT_NE(reg.require("test-counted", Kind::kMutator).plugin->path.find("qd_shadow.so"), std::string::npos);
+  EXPECT_NE(reg.require("test-fixed-latent", Kind::kRepresentation).plugin->path.find("qd_good.so"), std::string::npos);
+  ASSERT_EQ(reg.shadowed().size(), 1u);
+  EXPECT_EQ(reg.shadowed()[0].name, "test-counted");
+  ASSERT_EQ(reg.warnings().size(), 1u);
+  EXPECT_NE(reg.warnings()[0].find("qd_good.so: 'test-counted' left out, already provided by "), std::string::npos);
+  EXPECT_NE(reg.warnings()[0].find("qd_shadow.so"), std::string::npos);
+}
+
+// The case of issue 20: a user library that provides "iso" leaves the built-in library's "none",
+// "uniform" and "glorot" available.
+TEST(Loader, ShadowingABuiltInKeepsTheBuiltInLibrarysOtherComponents) {
+  const fs::path basic = fs::path(QD_BUILD_PLUGIN_DIR_FOR_TESTS) / "qd_basic.so";
+  if (!fs::exists(basic)) GTEST_SKIP() << basic << " is not built";
+  Registry reg;
+  reg.load(plugin("shadow"));
+  reg.load(basic);
+  EXPECT_NE(reg.require("iso", Kind::kMutator).plugin->path.find("qd_shadow.so"), std::string::npos);
+  EXPECT_NE(reg.require("none", Kind::kRepresentation).plugin->path.find("qd_basic.so"), std::string::npos);
+  EXPECT_NE(reg.require("uniform", Kind::kMutator).plugin->path.find("qd_basic.so"), std::string::npos);
+  EXPECT_NE(reg.require("glorot", Kind::kMutator).plugin->path.find("qd_basic.so"), std::string::npos);
+  ASSERT_EQ(reg.warnings().size(), 1u);
+  EXPECT_NE(reg.warnings()[0].find("qd_basic.so: 'iso' left out, already provided by "), std::string::npos)
+      << reg.warnings()[0];
+}
+
+// An unknown name is one line; a rejected library follows it only when it offers that name.
+TEST(Loader, UnknownComponentErrorListsOnlyLibrariesThatCouldHaveProvidedIt) {
+  Registry reg;
+  for (const char* d : {"good", "garbage", "no_entry", "bad_fingerprint", "debug_stl"})
+    reg.add_search_dir(fs::path(QD_TEST_PLUGIN_ROOT) / d);
+  reg.discover();
+  ASSERT_EQ(reg.rejected().size(), 4u);
+  std::string msg;
+  try {
+    reg.require("no-such-thing", Kind::kMutator);
+  } catch (const InputError& e) {
+    msg = e.what();
+  }
+  EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+  EXPECT_NE(msg.find("unknown mutator 'no-such-thing'; known mutators: test-counted; plugin search path: "),
+            std::string::npos)
+      << msg;
+  EXPECT_NE(msg.find("(4 other rejected libraries could not have provided it; qdrun --list shows why)"),
+            std::string::npos)
+      << msg;
+  try {
+    reg.require("debug-stl-nothing", Kind::kMutator);
+    msg.clear();
+  } catch (const InputError& e) {
+    msg = e.what();
+  }
+  const auto lines = std::count(msg.begin(), msg.end(), '\n');
+  EXPECT_EQ(lines, 1) << msg;
+  EXPECT_NE(msg.find("\n  rejected " + plugin("debug_stl").string() + ": build fingerprint '"), std::string::npos)
+      << msg;
+  EXPECT_NE(msg.find("(3 other rejected libraries"), std::string::npos) << msg;
 }
 
 TEST(Loader, RejectsDuplicateComponentInsideOneLibrary) {
@@ -148,11 +256,12 @@ TEST(Loader, WrongKindIsAnActionableError) {
 
 TEST(Loader, DiscoveryRecordsRejectionsAndKeepsGoodLibraries) {
   Registry reg;
-  for (const char* d : {"bad_abi", "good", "no_entry", "garbage", "duplicate"})
+  for (const char* d : {"bad_abi", "good", "no_entry", "garbage", "duplicate", "missing_symbol"})
     reg.add_search_dir(fs::path(QD_TEST_PLUGIN_ROOT) / d);
   reg.discover();
   EXPECT_NE(reg.find("test-counted"), nullptr);
-  ASSERT_EQ(reg.rejected().size(), 4u);
+  ASSERT_EQ(reg.rejected().size(), 4u);  // duplicate loads, without its shadowed name
+  EXPECT_EQ(reg.plugins().size(), 2u);
   try {
     reg.require("no-such-thing", Kind::kMutator);
     FAIL();
@@ -160,7 +269,11 @@ TEST(Loader, DiscoveryRecordsRejectionsAndKeepsGoodLibraries) {
     const std::string msg = err.what();
     EXPECT_NE(msg.find("unknown mutator 'no-such-thing'"), std::string::npos) << msg;
     EXPECT_NE(msg.find("test-counted"), std::string::npos) << msg;
-    EXPECT_NE(msg.find("rejected plugin libraries"), std::string::npos) << msg;
+    // bad_abi and missing_symbol are plugins whose names could not be read: either might have it.
+    EXPECT_NE(msg.find("\n  rejected " + plugin("bad_abi").string()), std::string::npos) << msg;
+    EXPECT_NE(msg.find("\n  rejected " + plugin("missing_symbol").string()), std::string::npos) << msg;
+    EXPECT_EQ(msg.find("qd_garbage.so"), std::string::npos) << msg;
+    EXPECT_EQ(msg.find("qd_no_entry.so"), std::string::npos) << msg;
   }
 }
 

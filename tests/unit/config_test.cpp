@@ -155,6 +155,109 @@ TEST(Config, IncludesMergeAndTheIncludingFileWins) {
   fs::remove_all(dir);
 }
 
+// Bare words are strings (nan, inf and dates included); numbers stay numbers, true/false booleans.
+TEST(Config, OverrideValuesAreTypedAsDocumented) {
+  auto resolved = [](const std::vector<std::string>& sets) {
+    Document d = Document::parse(kValid, "exp.toml");
+    for (const auto& s : sets) d.apply_override(s);
+    return resolve(d, registry());
+  };
+  EXPECT_EQ(resolved({"experiment.name=nan"}).settings.name, "nan");
+  EXPECT_EQ(resolved({"experiment.name=inf"}).settings.name, "inf");
+  EXPECT_EQ(resolved({"experiment.name=-inf"}).settings.name, "-inf");
+  EXPECT_EQ(resolved({"experiment.name=2024-01-01"}).settings.name, "2024-01-01");
+  EXPECT_EQ(resolved({"experiment.name=\"12\""}).settings.name, "12");
+  const Experiment ex = resolved({"experiment.seed=12", "output.snapshot_parameters=false", "mutator.sigma=1e-2"});
+  EXPECT_EQ(ex.settings.seed, 12u);
+  EXPECT_FALSE(ex.settings.snapshot_parameters);
+  EXPECT_EQ(ex.mutator.config.get_float("sigma"), 0.01);
+  // A word where a number belongs is a type error naming the key, not a NaN.
+  EXPECT_NE(error_of(kValid, {"mutator.sigma=nan"}).find("--set mutator.sigma=nan: mutator.sigma must be a float"),
+            std::string::npos)
+      << error_of(kValid, {"mutator.sigma=nan"});
+}
+
+// --set mutator.type=... over a file with other mutator keys: the keys the new component does not
+// declare are dropped with a note; those it declares are kept.
+TEST(Config, ReplacingTheTypeWithSetDropsUndeclaredKeys) {
+  Document d = Document::parse(kValid, "exp.toml");
+  d.apply_override("mutator.type=uniform");
+  const Experiment ex = resolve(d, registry());
+  EXPECT_EQ(ex.mutator.type, "uniform");
+  ASSERT_EQ(ex.notes.size(), 1u);
+  EXPECT_EQ(ex.notes[0],
+            "[mutator] type = \"uniform\" (--set mutator.type=uniform) replaces \"iso\": dropped sigma "
+            "(exp.toml:14:9), which uniform does not declare");
+  EXPECT_EQ(ex.resolved_toml.find("sigma"), std::string::npos) << ex.resolved_toml;
+
+  Document kept = Document::parse(kValid, "exp.toml");
+  kept.apply_override("mutator.type=poms");
+  const Experiment poms = resolve(kept, registry());
+  EXPECT_TRUE(poms.notes.empty());
+  EXPECT_EQ(poms.mutator.config.get_float("sigma"), 0.2);
+
+  // A key given on the command line is the user's: checked against the new component.
+  const std::string msg = error_of(kValid, {"mutator.sigma=0.3", "mutator.type=uniform"});
+  EXPECT_NE(msg.find("--set mutator.sigma=0.3: unknown key 'sigma' in [mutator]"), std::string::npos) << msg;
+}
+
+// The same through include; keys of the including file are still checked, typos stay errors.
+TEST(Config, ReplacingTheTypeThroughIncludeDropsUndeclaredKeys) {
+  const fs::path dir = fs::temp_directory_path() / ("qd_config_swap_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "base.toml") << kValid;
+  std::ofstream(dir / "mid.toml") << "include = \"base.toml\"\n[mutator]\nsigma = 0.5\n";
+  std::ofstream(dir / "exp.toml") << "include = \"mid.toml\"\n[mutator]\ntype = \"glorot\"\n";
+  const Experiment ex = resolve(Document::read(dir / "exp.toml"), registry());
+  EXPECT_EQ(ex.mutator.type, "glorot");
+  ASSERT_EQ(ex.notes.size(), 1u);
+  EXPECT_NE(ex.notes[0].find("[mutator] type = \"glorot\" (" + (dir / "exp.toml").string() +
+                             ":3:8) replaces \"iso\": dropped sigma (" + (dir / "mid.toml").string() + ":3:9)"),
+            std::string::npos)
+      << ex.notes[0];
+  std::ofstream(dir / "typo.toml") << "include = \"base.toml\"\n[mutator]\ntype = \"glorot\"\nsgima = 1.0\n";
+  try {
+    resolve(Document::read(dir / "typo.toml"), registry());
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("typo.toml:4:9: unknown key 'sgima' in [mutator]"), std::string::npos)
+        << e.what();
+  }
+  fs::remove_all(dir);
+}
+
+// config.toml records the user's plugin directories, and reading it back gives them.
+TEST(Config, ResolvedConfigurationRecordsThePluginSearchPath) {
+  const Experiment ex = resolve(Document::parse(kValid, "exp.toml"), registry());
+  const Document back = Document::parse(ex.resolved_toml, "config.toml");
+  const std::vector<std::string> recorded = back.recorded_search_path();
+  ASSERT_EQ(recorded.size(), 2u) << ex.resolved_toml;
+  EXPECT_EQ(recorded[0], fs::weakly_canonical(QD_BUILD_PLUGIN_DIR_FOR_TESTS).string());
+  EXPECT_EQ(recorded[1], fs::weakly_canonical(fs::path(QD_TEST_PLUGIN_ROOT) / "good").string());
+  EXPECT_TRUE(fs::path(recorded[0]).is_absolute());
+  EXPECT_TRUE(back.plugin_paths().empty());
+  // It is read back without complaint, and an unknown [plugins] key is still an error.
+  EXPECT_NO_THROW(resolve(back, registry()));
+  EXPECT_NE(error_of(std::string(kValid) + "\n[plugins]\nsearch = [\"x\"]\n").find("unknown key 'search' in [plugins]"),
+            std::string::npos);
+}
+
+// qdrun --describe covers the tables that are no plain parameter list.
+TEST(Config, DescribeCoversPluginsAndTheComponentTables) {
+  const std::string initial = describe_table("initial", registry());
+  EXPECT_NE(initial.find("[initial] (core): the loop-0 sampler"), std::string::npos) << initial;
+  EXPECT_NE(initial.find("type (string, default \"uniform\")"), std::string::npos) << initial;
+  EXPECT_NE(initial.find("available: "), std::string::npos) << initial;
+  EXPECT_NE(initial.find("glorot"), std::string::npos) << initial;
+  EXPECT_NE(describe_table("mutator", registry()).find("type (string, required)"), std::string::npos);
+  EXPECT_NE(describe_table("descriptor", registry()).find("the environment's own descriptor"), std::string::npos);
+  const std::string plugins = describe_table("plugins", registry());
+  EXPECT_NE(plugins.find("  path (list of strings"), std::string::npos) << plugins;
+  EXPECT_NE(plugins.find("  search_path (list of strings, written by qdrun)"), std::string::npos) << plugins;
+  EXPECT_EQ(describe_table("experiment", registry()), "");  // a plain parameter table: core_tables()
+  EXPECT_EQ(describe_table("iso", registry()), "");
+}
+
 TEST(Config, MissingFile) {
   try {
     Document::read("/nonexistent/exp.toml");

@@ -5,7 +5,9 @@
 //  * describe() is const and thread-safe. For trace i it writes cells[i] in [0, grid().cells) and
 //    values[i * dims .. (i + 1) * dims) with dims = grid().shape.size() (the continuous descriptor,
 //    written to archive snapshots). A trace that cannot be described gets cells[i] = -1 and is not
-//    inserted; traces with status != kOk are never passed in.
+//    inserted; traces with status != kOk are never passed in. `values` arrives zeroed.
+//  * Every offspring described into a cell is offered to that cell; which one stays is decided by
+//    [experiment] insertion (a coin flip, or the higher Trace::fitness), not by the descriptor.
 #pragma once
 
 #include <qd/component.hpp>

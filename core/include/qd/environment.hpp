@@ -7,6 +7,15 @@
 //  * Expected per-episode failures (NaN action, diverged physics) are status values in the Trace,
 //    never exceptions. An exception from rollout() is a bug and ends the run.
 //  * One virtual call per batch range: the evaluator hands each worker a range of rows.
+//  * What rollout() receives: traces[i] for i in [begin, end) as left by Trace::clear() (status
+//    kOk, steps 0, fitness 0, events and message empty, main and aux without rows). Trace objects
+//    are reused from batch to batch, so main.cols and aux.cols may still hold an earlier rollout's
+//    column count: call main.reset(cols) (and aux.reset) before pushing rows. Rows outside
+//    [begin, end) belong to other workers and must not be touched.
+//  * What rollout() gives back: status, steps, main/aux/events for the descriptor, and fitness,
+//    where higher is better. Fitness decides only under [experiment] insertion = "fitness" (an
+//    offspring replaces an occupant when its fitness is strictly higher) and is written to
+//    archive.csv's objective column; the paper's coin-flip insertion ignores it. It must be finite.
 #pragma once
 
 #include <qd/component.hpp>

@@ -5,9 +5,16 @@
 //      begin_loop (once per loop n >= 1)  ->  [mutate -> feedback] × iterations.
 //    Loop 0 calls only mutate(), with empty parents, on the experiment's [initial] mutator.
 //  * All randomness comes from ctx.rng, which the core derives from (seed, loop, iteration).
-//  * mutate() fills out.theta with `count` rows. When the representation has a latent space, a
-//    mutator may give the latent point each offspring came from (out.latent row + has_latent = 1);
-//    the core encodes the others and stores recn_error = ‖θ′ − Dec(z′)‖ (docs/reference-behaviour.md).
+//  * What mutate() receives: `out` already sized by Offspring::reset(count, P, LD): theta is
+//    count × P and latent count × LD (0 × 0 without a latent space), both with unspecified values;
+//    has_latent is count zeros, mixing_ratio NaN, metrics empty. `parents` holds `count` rows
+//    selected uniformly from the archive (without replacement once it holds `count` elites), or
+//    none at all for samplers and in loop 0.
+//  * mutate() fills every row of out.theta (assigning a new count × P matrix is fine). When the
+//    representation has a latent space, a mutator may give the latent point each offspring came
+//    from (out.latent row + has_latent = 1); the core encodes the others and stores
+//    recn_error = ‖θ′ − Dec(z′)‖ (docs/reference-behaviour.md). It appends one value per
+//    metric_names() entry to out.metrics. Another shape is an error that ends the run.
 //  * Mutators whose uses_parents() is false (samplers: ps-uniform, ps-glorot) get no parents.
 //  * State that must survive a checkpoint (the DDE bandit) goes through save()/load().
 #pragma once

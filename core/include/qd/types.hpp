@@ -57,7 +57,7 @@ struct Series {
 struct Trace {
   EvalStatus status = EvalStatus::kOk;
   int steps = 0;            // world steps taken
-  double fitness = 0.0;     // environment-defined; unused by the paper's algorithms
+  double fitness = 0.0;     // higher is better; finite; used by insertion = "fitness" only
   Series main;              // environment-defined trajectory rows (see the environment's README)
   Series aux;               // second trajectory table
   std::vector<int> events;  // environment-defined events in order (e.g. wall contacts)

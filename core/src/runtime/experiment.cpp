@@ -6,16 +6,29 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <sstream>
 
 namespace qd::runtime {
 namespace fs = std::filesystem;
 
+// The component type in effect where a key of a component table was set: the type in the same
+// file's table or, failing that, in the layers below it. A key set under another type than the
+// final one came with a component that an include or --set replaced. `known` is false for keys of
+// --set (always validated) and for keys with no type anywhere below them yet.
+struct KeyOrigin {
+  std::string type;
+  bool known = false;
+};
+using KeyOrigins = std::map<std::string, std::map<std::string, KeyOrigin>>;  // table -> key -> origin
+
 struct Document::Impl {
   toml::table root;
   fs::path file;
+  KeyOrigins origins;
 };
 
 Document::Document() : impl(std::make_unique<Impl>()) {}
@@ -83,7 +96,52 @@ void deep_merge(toml::table& base, toml::table&& over) {
   }
 }
 
-toml::table parse_file(const fs::path& file, int depth) {
+constexpr const char* kComponentTableNames[] = {"environment", "descriptor", "representation", "mutator", "initial"};
+
+const toml::table* table_of(const toml::table& root, const char* name) {
+  const toml::node* n = root.get(name);
+  return n ? n->as_table() : nullptr;
+}
+
+std::optional<std::string> type_of(const toml::table& root, const char* table) {
+  const toml::table* t = table_of(root, table);
+  const toml::node* type = t ? t->get("type") : nullptr;
+  if (type && type->is_string()) return type->as_string()->get();
+  return std::nullopt;
+}
+
+// One file's own keys, tagged with the type its table names (if any).
+KeyOrigins own_origins(const toml::table& root) {
+  KeyOrigins out;
+  for (const char* name : kComponentTableNames) {
+    const toml::table* t = table_of(root, name);
+    if (!t) continue;
+    const auto type = type_of(root, name);
+    for (const auto& [k, v] : *t)
+      if (k.str() != "type") out[name][std::string(k.str())] = {type.value_or(""), type.has_value()};
+  }
+  return out;
+}
+
+struct Layered {
+  toml::table root;
+  KeyOrigins origins;
+};
+
+// Puts `over` on top of `base` (the including file over its includes, a later include over an
+// earlier one). Keys of `over` without a type of their own were written for the type below them.
+void layer(Layered& base, Layered&& over) {
+  for (auto& [table, keys] : over.origins) {
+    const auto below = type_of(base.root, table.c_str());
+    for (auto& [key, origin] : keys) {
+      if (!origin.known && below) origin = {*below, true};
+      base.origins[table][key] = origin;
+    }
+  }
+  deep_merge(base.root, std::move(over.root));
+}
+
+Layered parse_file(const fs::path& file, int depth) {
   if (depth > 16) throw InputError(file.string() + ": includes nest more than 16 levels (a cycle?)");
   std::error_code ec;
   if (!fs::is_regular_file(file, ec)) throw InputError(file.string() + ": no such experiment file");
@@ -98,7 +156,10 @@ toml::table parse_file(const fs::path& file, int depth) {
     throw InputError(location(e.source()) + ": malformed TOML: " + std::string(e.description()));
   }
   const toml::node* inc = t.get("include");
-  if (!inc) return t;
+  if (!inc) {
+    KeyOrigins origins = own_origins(t);
+    return {std::move(t), std::move(origins)};
+  }
   std::vector<std::string> includes;
   if (inc->is_string()) {
     includes.push_back(inc->as_string()->get());
@@ -110,17 +171,18 @@ toml::table parse_file(const fs::path& file, int depth) {
   } else {
     fail_at(*inc, "include must be a path or a list of paths");
   }
-  toml::table merged;
+  Layered merged;
   for (const auto& rel : includes) {
     fs::path p = fs::path(rel).is_absolute() ? fs::path(rel) : file.parent_path() / rel;
     try {
-      deep_merge(merged, parse_file(p, depth + 1));
+      layer(merged, parse_file(p, depth + 1));
     } catch (const InputError& e) {
       throw InputError(std::string(e.what()) + " (included from " + location(*inc) + ")");
     }
   }
   t.erase("include");
-  deep_merge(merged, std::move(t));
+  KeyOrigins origins = own_origins(t);
+  layer(merged, Layered{std::move(t), std::move(origins)});
   return merged;
 }
 
@@ -321,7 +383,9 @@ void put_config(toml::table& out, const Config& cfg, const ParamSpec* specs, std
 Document Document::read(const fs::path& file) {
   Document d;
   d.impl->file = fs::absolute(file);
-  d.impl->root = parse_file(d.impl->file, 0);
+  Layered l = parse_file(d.impl->file, 0);
+  d.impl->root = std::move(l.root);
+  d.impl->origins = std::move(l.origins);
   return d;
 }
 
@@ -332,6 +396,7 @@ Document Document::parse(const std::string& text, const std::string& source_name
   } catch (const toml::parse_error& e) {
     throw InputError(location(e.source()) + ": malformed TOML: " + std::string(e.description()));
   }
+  d.impl->origins = own_origins(d.impl->root);
   return d;
 }
 
@@ -347,10 +412,18 @@ void Document::apply_override(const std::string& assignment, const std::string& 
   const std::string value = assignment.substr(eq + 1);
   const std::string source = option.empty() ? "--set " + assignment : option;
   toml::table parsed;
+  bool bare = false;
   try {
     parsed = toml::parse("v = " + value, source);
+    // TOML reads the words nan and inf as floats and 2024-01-01 as a date; no parameter takes
+    // either, and --set mutator.mode=nan means the word.
+    const toml::node& v = *parsed.get("v");
+    bare = (v.is_floating_point() && !std::isfinite(v.as_floating_point()->get())) || v.is_date() || v.is_time() ||
+           v.is_date_time();
   } catch (const toml::parse_error&) {
-    // Bare words are strings: --set mutator.type=iso
+    bare = true;  // --set mutator.type=iso
+  }
+  if (bare) {
     std::string quoted = "\"";
     for (char c : value) {
       if (c == '"' || c == '\\') quoted += '\\';
@@ -377,18 +450,26 @@ void Document::apply_override(const std::string& assignment, const std::string& 
   }
   if (parts.back().empty()) throw InputError(source + ": empty key");
   t->insert_or_assign(parts.back(), std::move(*parsed.get("v")));
+  // A key given on the command line is always checked against the final component; a new type
+  // leaves the keys already there tagged with the old one.
+  if (parts.size() == 2 && parts[1] != "type") impl->origins[parts[0]][parts[1]] = KeyOrigin{};
 }
 
-std::vector<std::string> Document::plugin_paths() const {
+namespace {
+// The entries of [plugins] `key` (a path or a list of paths), made absolute against `file`'s
+// directory. Checks every key of [plugins].
+std::vector<std::string> plugin_dirs(const toml::table& root, const fs::path& file, const std::string& key) {
   std::vector<std::string> out;
-  const toml::table* t = sub_table(impl->root, "plugins");
+  const toml::table* t = sub_table(root, "plugins");
   if (!t) return out;
   for (const auto& [k, v] : *t) {
-    if (k.str() != "path") fail_at(v, "unknown key '" + std::string(k.str()) + "' in [plugins]; it accepts: path");
+    if (k.str() != "path" && k.str() != "search_path")
+      fail_at(v, "unknown key '" + std::string(k.str()) + "' in [plugins]; it accepts: path, search_path");
+    if (k.str() != key) continue;
     auto add = [&](const toml::node& x) {
-      if (!x.is_string()) fail_at(x, "plugins.path entries must be strings");
+      if (!x.is_string()) fail_at(x, "plugins." + key + " entries must be strings");
       fs::path p = x.as_string()->get();
-      if (p.is_relative() && !impl->file.empty()) p = impl->file.parent_path() / p;
+      if (p.is_relative() && !file.empty()) p = file.parent_path() / p;
       out.push_back(p.lexically_normal().string());
     };
     if (v.is_array()) {
@@ -398,6 +479,15 @@ std::vector<std::string> Document::plugin_paths() const {
     }
   }
   return out;
+}
+}  // namespace
+
+std::vector<std::string> Document::plugin_paths() const {
+  return plugin_dirs(impl->root, impl->file, "path");
+}
+
+std::vector<std::string> Document::recorded_search_path() const {
+  return plugin_dirs(impl->root, impl->file, "search_path");
 }
 
 std::vector<CoreTable> core_tables() {
@@ -493,18 +583,50 @@ Experiment resolve(const Document& doc, const Registry& registry) {
                        ".type: " + err.what());
     }
     const ComponentInfo& info = *cc->entry->info;
+    // Keys written for a component that an include or --set replaced: those the new component does
+    // not declare are dropped, with a note, instead of failing as unknown keys.
+    std::vector<std::string> skip = {"type"};
+    if (t) {
+      std::string dropped, replaced;
+      const auto origins = doc.impl->origins.find(table);
+      for (const auto& [k, v] : *t) {
+        const std::string key(k.str());
+        if (key == "type" || origins == doc.impl->origins.end()) continue;
+        const auto origin = origins->second.find(key);
+        if (origin == origins->second.end() || !origin->second.known || origin->second.type == cc->type) continue;
+        bool declared = false;
+        for (std::uint32_t i = 0; i < info.param_count; ++i) declared = declared || key == info.params[i].key;
+        if (declared) continue;
+        skip.push_back(key);
+        dropped += (dropped.empty() ? "" : ", ") + key + " (" + location(v) + ")";
+        const std::string old_type = "\"" + origin->second.type + "\"";
+        if (replaced.find(old_type) == std::string::npos) replaced += (replaced.empty() ? "" : ", ") + old_type;
+      }
+      if (!dropped.empty())
+        ex.notes.push_back("[" + table + "] type = \"" + cc->type + "\" (" +
+                           (type_node ? location(*type_node) : std::string("default")) + ") replaces " + replaced +
+                           ": dropped " + dropped + ", which " + cc->type + " does not declare");
+    }
     cc->config = validate_table(t, table, info.params, info.param_count,
-                                "component '" + cc->type + "' (" + cc->entry->plugin->path + ")", {"type"});
+                                "component '" + cc->type + "' (" + cc->entry->plugin->path + ")", skip);
     toml::table out;
     out.insert_or_assign("type", cc->type);
     put_config(out, cc->config, info.params, info.param_count);
     resolved.insert_or_assign(table, std::move(out));
   }
-  if (!ex.plugin_paths.empty()) {
-    toml::array a;
-    for (const auto& x : ex.plugin_paths) a.push_back(x);
+  // The user's plugin directories this run searches, recorded so that --resume, --replay and
+  // --latents find the same plugins without the command line or environment that named them.
+  const std::vector<std::string> search_path = registry.user_dirs();
+  if (!ex.plugin_paths.empty() || !search_path.empty()) {
     toml::table t;
-    t.insert_or_assign("path", std::move(a));
+    auto put = [&t](const char* key, const std::vector<std::string>& list) {
+      if (list.empty()) return;
+      toml::array a;
+      for (const auto& x : list) a.push_back(x);
+      t.insert_or_assign(key, std::move(a));
+    };
+    put("path", ex.plugin_paths);
+    put("search_path", search_path);
     resolved.insert_or_assign("plugins", std::move(t));
   }
   std::ostringstream out;
@@ -541,6 +663,84 @@ std::string describe_params(const ParamSpec* params, std::size_t count) {
     o << ")\n      " << (s.help ? s.help : "") << "\n";
   }
   return o.str();
+}
+
+std::string describe_table(const std::string& name, const Registry& registry) {
+  if (name == "plugins")
+    return "[plugins] (core): where plugin libraries are searched, before qdrun's own <prefix>/lib/qd/plugins\n"
+           "  path (list of strings, default [])\n"
+           "      plugin directories, searched after --plugin-path and QD_PLUGIN_PATH; relative to the experiment "
+           "file\n"
+           "  search_path (list of strings, written by qdrun)\n"
+           "      the user directories a run searched (--plugin-path, QD_PLUGIN_PATH, path), absolute; a run's "
+           "config.toml records it, and --resume, --replay and --latents search it after the current ones\n";
+  for (const auto& ct : kComponentTables) {
+    if (name != ct.name) continue;
+    std::string purpose = "the " + std::string(to_string(ct.kind)) + " component";
+    if (name == "mutator") purpose = "the variation operator of loops n >= 1 (a mutator component)";
+    if (name == "initial") purpose = "the loop-0 sampler (a mutator component that needs no parents)";
+    if (name == "representation") purpose = "the latent model of the policy parameters (a representation component)";
+    if (name == "descriptor") purpose = "the behaviour descriptor (a descriptor component)";
+    if (name == "environment") purpose = "the task (an environment component)";
+    std::string dflt = ct.default_type == nullptr ? "required"
+                       : *ct.default_type         ? "default \"" + std::string(ct.default_type) + "\""
+                                                  : "default: the environment's own descriptor";
+    std::string known;
+    for (const auto& c : registry.components())
+      if (c.info->kind == ct.kind) known += (known.empty() ? "" : ", ") + std::string(c.info->name);
+    return "[" + name + "] (core): " + purpose + "\n  type (string, " + dflt +
+           ")\n      the component's name; the table's other keys are that component's parameters (qdrun "
+           "--describe <type>). An include or --set that changes type drops the keys the new component does not "
+           "declare\n      available: " +
+           (known.empty() ? std::string("(none found)") : known) + "\n";
+  }
+  return "";
+}
+
+std::string missing_plugin_hint(const fs::path& run_dir, const Registry& registry) {
+  // The newest session's provenance: provenance.toml, or provenance-resume-loop-L.toml with the
+  // highest L.
+  fs::path newest = run_dir / "provenance.toml";
+  int newest_loop = 0;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(run_dir, ec)) {
+    const std::string f = e.path().filename().string();
+    const std::string prefix = "provenance-resume-loop-";
+    if (f.rfind(prefix, 0) != 0 || e.path().extension() != ".toml") continue;
+    const int loop = std::atoi(f.c_str() + prefix.size());
+    if (loop > newest_loop) newest_loop = loop, newest = e.path();
+  }
+  toml::table prov;
+  try {
+    prov = toml::parse_file(newest.string());
+  } catch (const std::exception&) {
+    return "";
+  }
+  const toml::array* plugins = prov["plugins"].as_array();
+  if (!plugins) return "";
+  std::string out;
+  for (const auto& node : *plugins) {
+    const toml::table* p = node.as_table();
+    if (!p) continue;
+    const std::string component = (*p)["component"].value_or(std::string());
+    const std::string path = (*p)["path"].value_or(std::string());
+    if (component.empty() || path.empty()) continue;
+    if (registry.find(component)) continue;  // found (perhaps elsewhere): not why the run cannot start
+    std::string what = "this run loaded [" + (*p)["table"].value_or(std::string()) + "] '" + component + "' from " +
+                       path + " (plugin " + (*p)["plugin"].value_or(std::string()) + " " +
+                       (*p)["version"].value_or(std::string()) + ")";
+    const auto rejected = std::find_if(registry.rejected().begin(), registry.rejected().end(),
+                                       [&](const Rejection& r) { return fs::equivalent(r.path, path, ec); });
+    if (!fs::exists(path, ec)) {
+      what += ", which no longer exists";
+    } else if (rejected != registry.rejected().end()) {
+      what += ", which is rejected now";
+    } else {
+      what += "; add its directory with --plugin-path";
+    }
+    out += (out.empty() ? "" : "; ") + what;
+  }
+  return out;
 }
 
 }  // namespace qd::runtime

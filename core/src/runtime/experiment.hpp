@@ -48,6 +48,9 @@ struct Experiment {
   ComponentConfig environment, descriptor, representation, mutator, initial;
   std::string resolved_toml;              // every setting with defaults filled in
   std::vector<std::string> plugin_paths;  // [plugins] path, made absolute
+  // One line each for the user (qdrun prints them as notes): keys dropped because an include or
+  // --set replaced the component they were written for.
+  std::vector<std::string> notes;
 };
 
 // Raw parsed document (PIMPL around toml::table so no TOML type leaks into headers).
@@ -63,12 +66,16 @@ class Document {
   static Document read(const std::filesystem::path& file);
   static Document parse(const std::string& text, const std::string& source_name);
 
-  // Applies `key.path=value`; value is TOML value syntax, or a bare word taken as a string.
+  // Applies `key.path=value`; value is a TOML number, boolean, quoted string, array or inline
+  // table, and anything else (a bare word, also nan, inf and dates) is taken as a string.
   // Errors name `option` (the command-line option it came from), or "--set key.path=value".
   void apply_override(const std::string& assignment, const std::string& option = {});
 
   // [plugins] path entries (absolute), available before plugins are loaded.
   std::vector<std::string> plugin_paths() const;
+  // [plugins] search_path entries (absolute): the user directories a run searched, as its
+  // config.toml records them, so that --resume finds the same plugins.
+  std::vector<std::string> recorded_search_path() const;
   std::filesystem::path file() const;
 
   struct Impl;
@@ -100,5 +107,15 @@ std::vector<ConfigDifference> config_differences(const std::string& before, cons
 
 // Renders a component's parameters for `qdrun --describe`.
 std::string describe_params(const ParamSpec* params, std::size_t count);
+
+// `qdrun --describe` text of the tables that are no plain parameter list: [plugins] and the
+// component tables ([environment], [descriptor], [representation], [mutator], [initial]). Empty
+// for any other name.
+std::string describe_table(const std::string& name, const Registry& registry);
+
+// For a run directory whose components cannot all be found: one sentence per component that its
+// provenance files record but `registry` does not provide (which library, where it was, and whether
+// that file is gone, rejected or outside the search path). Empty when there is nothing to say.
+std::string missing_plugin_hint(const std::filesystem::path& run_dir, const Registry& registry);
 
 }  // namespace qd::runtime

@@ -32,32 +32,60 @@ struct ComponentEntry {
   std::shared_ptr<LoadedPlugin> plugin;
 };
 
+// A library found in the search path and refused, with what is known of its contents.
 struct Rejection {
   std::string path;
-  std::string reason;
+  std::string reason;  // one line, starting with the path
+  // Whether the file is a plugin at all (it exports the entry symbol), and, when its information
+  // could be read safely (ABI version and struct size matched), the component names it offers.
+  bool is_plugin = false;
+  bool names_known = false;
+  std::vector<std::string> names;
+
+  // Whether this library might have provided `name`, had it loaded.
+  bool could_provide(const std::string& name) const;
 };
+
+// A component left out because a library earlier in the search path provides the same name.
+struct Shadowed {
+  std::string name;
+  Kind kind = Kind::kMutator;
+  std::string path;    // the library whose component is left out
+  std::string winner;  // the library that provides the name
+};
+
+// Where a search directory comes from: the user (--plugin-path, QD_PLUGIN_PATH, [plugins]), which
+// a run records in its config.toml, or the executable itself (its own plugin directory).
+enum class DirOrigin { kUser, kOwn };
 
 class Registry {
  public:
   // Directories in precedence order (first hit wins for a component name).
-  void add_search_dir(const std::filesystem::path& dir);
+  void add_search_dir(const std::filesystem::path& dir, DirOrigin origin = DirOrigin::kUser);
   const std::vector<std::filesystem::path>& search_dirs() const noexcept { return dirs_; }
+  // The user's directories, absolute, in search order.
+  std::vector<std::string> user_dirs() const;
 
   // Loads every qd_*.so in the search directories. Libraries that fail a check are recorded in
   // rejected() instead of throwing, so one stale file does not block unrelated experiments.
   void discover();
 
   // Loads one library and registers its components. Throws qd::PluginError naming the path and the
-  // failed check.
+  // failed check. A component whose name an earlier library provides is left out (shadowed()), the
+  // library's other components are registered.
   std::shared_ptr<LoadedPlugin> load(const std::filesystem::path& path);
 
   const ComponentEntry* find(const std::string& name) const;
-  // Throws qd::InputError naming the kind, the known components and any rejected libraries.
+  // Throws qd::InputError naming the kind and the known components, followed by one line per
+  // rejected library that could have provided the name.
   const ComponentEntry& require(const std::string& name, Kind kind) const;
 
   const std::vector<ComponentEntry>& components() const noexcept { return components_; }
   const std::vector<std::shared_ptr<LoadedPlugin>>& plugins() const noexcept { return plugins_; }
   const std::vector<Rejection>& rejected() const noexcept { return rejected_; }
+  const std::vector<Shadowed>& shadowed() const noexcept { return shadowed_; }
+  // One line per (library, shadowing library) pair, naming both and the names left out.
+  std::vector<std::string> warnings() const;
 
   // Constructs a component; the result keeps its library loaded. Exceptions from the factory come
   // back as qd::ConfigError (with the key) or qd::PluginError naming the component and library.
@@ -73,18 +101,25 @@ class Registry {
   }
 
  private:
+  std::shared_ptr<LoadedPlugin> load(const std::filesystem::path& path, Rejection& seen);
   Component* construct(const ComponentEntry& entry, const Config& config, const BuildContext& ctx) const;
   static void destroy(Component* c, const ComponentEntry& entry) noexcept;
   [[noreturn]] static void throw_wrong_type(const ComponentEntry& entry);
 
   std::vector<std::filesystem::path> dirs_;
+  std::vector<DirOrigin> origins_;
   std::vector<std::shared_ptr<LoadedPlugin>> plugins_;
   std::vector<ComponentEntry> components_;
   std::vector<Rejection> rejected_;
+  std::vector<Shadowed> shadowed_;
 };
 
-// The build-tree plugin directory baked in at compile time, and <exe>/../lib/qd/plugins.
-std::filesystem::path build_tree_plugin_dir();
+// The executable's own plugin directory, <exe>/../lib/qd/plugins (the build tree mirrors the
+// install tree, so this is right for build/bin/qdrun too).
 std::filesystem::path installed_plugin_dir();
+// The build tree's plugin directory, but only for an executable that runs from that build tree's
+// bin directory; empty otherwise, so an installed qdrun never loads plugins of the tree it was
+// built in.
+std::filesystem::path build_tree_plugin_dir();
 
 }  // namespace qd::runtime
