@@ -1,9 +1,10 @@
 // qdrun: runs a Quality-Diversity experiment described by a TOML file.
 //
 // Exit codes: 0 success; 1 internal failure (a bug); 2 bad input (file, TOML, configuration,
-// plugins, run directory); 3 a worker process or MPI rank died or hung; 4 a system or I/O error
-// (disk full, no memory, no process or thread could be created); 130 / 143 stopped by SIGINT /
-// SIGTERM.
+// plugins, run directory); 3 a plugin failed during the run (a rollout crashed, exited, hung or
+// threw; plugin output broke its contract) or a worker process or MPI rank died or hung; 4 a
+// system or I/O error (disk full, no memory, no process or thread could be created); 130 / 143
+// stopped by SIGINT / SIGTERM.
 #include "interrupt.hpp"
 #include "progress.hpp"
 #include "runtime/experiment.hpp"
@@ -189,7 +190,11 @@ int run_one(const Cli& cli, const std::string& command_line) {
     // An MPI worker rank: same experiment, no files, no output; it serves rank 0 until stopped.
     opt.on_progress = nullptr;
     const auto worker = build([&] { return std::make_unique<Run>(std::move(ex), reg, std::move(opt)); });
-    worker->serve();
+    try {
+      worker->serve();
+    } catch (const PluginError& e) {
+      throw WorkerFailure(e.what());  // a plugin fault during the run: exit 3, as on rank 0
+    }
     return kExitOk;
   }
   const auto owned = build([&] { return std::make_unique<Run>(std::move(ex), reg, std::move(opt)); });
@@ -218,7 +223,9 @@ int run_one(const Cli& cli, const std::string& command_line) {
       std::fprintf(f, "failed: %s (%s)\n", e.what(), next.c_str());
       std::fclose(f);
     }
-    if (dynamic_cast<const WorkerFailure*>(&e)) throw WorkerFailure(std::string(e.what()) + "; " + next);
+    // A plugin fault during the run is exit 3 like a dead worker (setup faults were exit 2).
+    if (dynamic_cast<const WorkerFailure*>(&e) || dynamic_cast<const PluginError*>(&e))
+      throw WorkerFailure(std::string(e.what()) + "; " + next);
     if (dynamic_cast<const SystemError*>(&e)) throw SystemError(std::string(e.what()) + "; " + next);
     throw;
   }
@@ -320,7 +327,7 @@ int qdrun_main(int argc, char** argv) {
     ("set", po::value(&cli.sets)->composing(), "override a setting: --set mutator.sigma=0.05 (repeatable)")
     ("output,o", po::value(&cli.output), "root output directory (overrides output.dir)")
     ("workers,j", po::value(&cli.workers), "local evaluation workers (default: all cores; results do not depend on it)")
-    ("backend", po::value(&cli.backend), "evaluation backend: auto (default), processes, threads or mpi (overrides [evaluation] backend)")
+    ("backend", po::value(&cli.backend), "evaluation backend: auto (default: mpi under mpirun, else worker processes that qdrun supervises), processes, threads (inside qdrun, unsupervised) or mpi (overrides [evaluation] backend)")
     ("resume", po::value(&cli.resume), "continue the run in this run directory from its last checkpoint")
     ("quiet,q", po::bool_switch(&cli.quiet), "print nothing but errors")
     ("list", po::bool_switch(&cli.list), "list every available component with its plugin library and version")
@@ -402,8 +409,9 @@ int qdrun_main(int argc, char** argv) {
   } catch (const WorkerFailure& e) {
     std::fprintf(stderr, "qdrun: error: %s\n", e.what());
     std::fflush(stderr);
-    // Under MPI a hung or dead rank would never join MPI_Finalize: take the job down.
-    if (mpi_size() > 1) mpi_abort(kExitWorkerFailure);
+    // Under MPI a hung or dead rank would never join MPI_Finalize: rank 0 takes the job down. A
+    // worker rank returns, so main() prints its captured message before it exits.
+    if (mpi_size() > 1 && mpi_rank() == 0) mpi_abort(kExitWorkerFailure);
     return kExitWorkerFailure;
   } catch (const SystemError& e) {
     std::fprintf(stderr, "qdrun: system error: %s\n", e.what());

@@ -27,6 +27,15 @@ void Representation::decoder_vjp(const Matrix& z, const Matrix& v, Matrix& out) 
   QD_CHECK(z.rows() == v.rows(), "decoder_vjp: z and v must have the same number of rows");
   std::vector<Matrix> jac;
   decoder_jacobians(z, jac);
+  // Plugin output: checked before it is indexed (issue 20).
+  if (jac.size() != static_cast<std::size_t>(z.rows()))
+    throw PluginError("the representation's decoder_jacobians() returned " + std::to_string(jac.size()) +
+                      " Jacobians for " + std::to_string(z.rows()) + " latent points");
+  for (const Matrix& j : jac)
+    if (j.rows() != v.cols() || j.cols() != z.cols())
+      throw PluginError("the representation's decoder_jacobians() returned a " + std::to_string(j.rows()) + " x " +
+                        std::to_string(j.cols()) + " Jacobian, expected " + std::to_string(v.cols()) + " x " +
+                        std::to_string(z.cols()));
   out.resize(z.rows(), z.cols());
   for (Eigen::Index i = 0; i < z.rows(); ++i) out.row(i).noalias() = v.row(i) * jac[static_cast<std::size_t>(i)];
 }
@@ -34,7 +43,14 @@ void Representation::decoder_vjp(const Matrix& z, const Matrix& v, Matrix& out) 
 void Representation::reconstruction_errors(const Matrix& theta, Vector& errors) const {
   Matrix z, rec;
   encode(theta, z);
+  if (z.rows() != theta.rows())
+    throw PluginError("the representation's encode() returned " + std::to_string(z.rows()) + " rows for " +
+                      std::to_string(theta.rows()) + " policies");
   decode(z, rec);
+  if (rec.rows() != theta.rows() || rec.cols() != theta.cols())
+    throw PluginError("the representation's decode() returned " + std::to_string(rec.rows()) + " x " +
+                      std::to_string(rec.cols()) + " for " + std::to_string(theta.rows()) + " x " +
+                      std::to_string(theta.cols()) + " policies");
   errors = (theta - rec).rowwise().norm();
 }
 

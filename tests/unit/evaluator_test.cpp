@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -148,4 +149,118 @@ TEST(Evaluator, DeadWorkerProcessIsReported) {
     EXPECT_NE(std::string(e.what()).find("signal 9"), std::string::npos) << e.what();
   }
   EXPECT_THROW(procs.evaluate(params, seeds, out), runtime::WorkerFailure);
+}
+
+namespace {
+// The scripted environment, except that a policy whose first parameter is `kFaultMarker` makes
+// rollout() throw, or (crash = true) raise SIGSEGV.
+constexpr double kFaultMarker = 42.0;
+class FaultyEnvironment final : public Environment {
+ public:
+  explicit FaultyEnvironment(bool crash = false) : crash_(crash) {}
+  EnvironmentInfo info() const override { return inner_.info(); }
+  void rollout(const RolloutBatch& batch, Trace* traces) const override {
+    for (std::size_t i = batch.begin; i < batch.end; ++i)
+      if ((*batch.params)(static_cast<Eigen::Index>(i), 0) == kFaultMarker) {
+        if (crash_) ::raise(SIGSEGV);
+        throw std::runtime_error("deliberate fault");
+      }
+    inner_.rollout(batch, traces);
+  }
+
+ private:
+  ScriptedEnvironment inner_;
+  bool crash_;
+};
+
+const runtime::PluginLabels kLabels{"environment 'faulty' (test.so)", "descriptor 'scripted' (test.so)"};
+}  // namespace
+
+// Issue 20: an exception from a rollout on a worker thread is rethrown on the calling thread once
+// every thread has left the job (it used to leave threads running a destroyed job: a use after
+// free that AddressSanitizer reports), names the environment and the offspring, and leaves the
+// pool usable.
+TEST(Evaluator, ThreadsRethrowARolloutExceptionAfterEveryThreadStops) {
+  const FaultyEnvironment env;
+  const ScriptedDescriptor desc;
+  const PolicyShape shape(6, {8, 8}, 3);
+  Matrix params = random_params(shape, 300, 13);
+  std::vector<std::uint64_t> seeds(300, 0);
+  runtime::ThreadEvaluator threads(env, desc, shape, 4, kLabels);
+  runtime::Evaluations out;
+  for (int round = 0; round < 30; ++round) {
+    const Eigen::Index bad = 7 + round * 9;
+    params(bad, 0) = kFaultMarker;
+    try {
+      threads.evaluate(params, seeds, out);
+      FAIL() << "expected an EvaluationFault";
+    } catch (const runtime::EvaluationFault& e) {
+      EXPECT_EQ(e.first, static_cast<std::size_t>(bad));
+      EXPECT_EQ(e.last, static_cast<std::size_t>(bad));
+      EXPECT_STREQ(e.what(), "environment 'faulty' (test.so) threw from rollout(): deliberate fault");
+    }
+    params(bad, 0) = 0.5;
+  }
+  runtime::ThreadEvaluator serial(env, desc, shape, 1);
+  runtime::Evaluations a;
+  serial.evaluate(params, seeds, a);
+  threads.evaluate(params, seeds, out);
+  expect_same(a, out);
+}
+
+// The same exception in a worker process gives the same fault, message and offspring as in
+// qdrun's own process.
+TEST(Evaluator, WorkerProcessExceptionEqualsTheInProcessOne) {
+  const FaultyEnvironment env;
+  const ScriptedDescriptor desc;
+  const PolicyShape shape(6, {8, 8}, 3);
+  Matrix params = random_params(shape, 64, 14);
+  params(37, 0) = kFaultMarker;
+  std::vector<std::uint64_t> seeds(64, 0);
+  std::string in_process;
+  runtime::ThreadEvaluator serial(env, desc, shape, 1, kLabels);
+  runtime::Evaluations out;
+  try {
+    serial.evaluate(params, seeds, out);
+  } catch (const runtime::EvaluationFault& e) {
+    in_process = e.what();
+    EXPECT_EQ(e.first, 37u);
+  }
+  EXPECT_FALSE(in_process.empty());
+  for (int workers : {1, 2}) {
+    runtime::ProcessEvaluator procs(env, desc, shape, workers, 64, 60, kLabels);
+    try {
+      procs.evaluate(params, seeds, out);
+      FAIL() << "expected an EvaluationFault";
+    } catch (const runtime::EvaluationFault& e) {
+      EXPECT_EQ(std::string(e.what()), in_process);
+      EXPECT_EQ(e.first, 37u);
+      EXPECT_EQ(e.last, 37u);
+    }
+  }
+}
+
+// A rollout that crashes its worker process is named with the signal, the environment and the
+// exact offspring, and qdrun's process lives on.
+TEST(Evaluator, CrashingRolloutNamesTheOffspring) {
+  const FaultyEnvironment env(true);
+  const ScriptedDescriptor desc;
+  const PolicyShape shape(6, {8, 8}, 3);
+  Matrix params = random_params(shape, 40, 15);
+  params(23, 0) = kFaultMarker;
+  std::vector<std::uint64_t> seeds(40, 0);
+  runtime::ProcessEvaluator procs(env, desc, shape, 1, 40, 60, kLabels);
+  runtime::Evaluations out;
+  try {
+    procs.evaluate(params, seeds, out);
+    FAIL() << "expected an EvaluationFault";
+  } catch (const runtime::EvaluationFault& e) {
+    EXPECT_EQ(e.first, 23u);
+    EXPECT_NE(std::string(e.what()).find("worker process 1 (pid "), std::string::npos) << e.what();
+#ifndef __SANITIZE_ADDRESS__  // AddressSanitizer turns the signal into its report and exit code 1
+    EXPECT_NE(std::string(e.what()).find("killed by signal 11"), std::string::npos) << e.what();
+#endif
+    EXPECT_NE(std::string(e.what()).find("in rollout() of environment 'faulty' (test.so)"), std::string::npos)
+        << e.what();
+  }
 }

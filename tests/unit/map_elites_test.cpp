@@ -21,9 +21,12 @@ using namespace qd::runtime;
 namespace {
 
 constexpr std::int64_t kCells = 50;
-constexpr int kP = 4;  // PolicyShape(1, {1}, 1); the world reads the first three parameters
+constexpr int kP = 4;  // PolicyShape(1, {1}, 1)
+// θ3 breaks a plugin's contract on purpose (issue 20): the environment returns a NaN fitness, the
+// descriptor an infinite value or a cell outside the grid.
+constexpr double kNanFitness = 7, kInfDescriptor = 8, kCellOutOfRange = 9;
 
-// trace.main = (θ0, θ1); fitness θ1; a negative θ0 is a failed episode.
+// trace.main = (θ0, θ1, θ3); fitness θ1; a negative θ0 is a failed episode.
 class ScriptedEnvironment final : public Environment {
  public:
   EnvironmentInfo info() const override { return {1, 1, 1, ""}; }
@@ -31,9 +34,9 @@ class ScriptedEnvironment final : public Environment {
     for (std::size_t i = b.begin; i < b.end; ++i) {
       const double* theta = b.params->row(static_cast<Eigen::Index>(i)).data();
       Trace& t = traces[i];
-      t.main.reset(2);
-      t.main.push(theta[0], theta[1]);
-      t.fitness = theta[1];
+      t.main.reset(3);
+      t.main.push(theta[0], theta[1], theta[3]);
+      t.fitness = theta[3] == kNanFitness ? std::nan("") : theta[1];
       t.steps = 1;
       t.status = theta[0] < 0 ? EvalStatus::kFailed : EvalStatus::kOk;
     }
@@ -46,9 +49,10 @@ class ScriptedDescriptor final : public Descriptor {
   GridSpec grid() const override { return {{kCells}, {"x"}, {0.0}, {double(kCells)}, kCells}; }
   void describe(const Trace* traces, std::size_t n, std::int64_t* cells, double* values) const override {
     for (std::size_t i = 0; i < n; ++i) {
-      const double x = traces[i].main.row(0)[0];
+      const double x = traces[i].main.row(0)[0], fault = traces[i].main.row(0)[2];
       cells[i] = x < double(kCells) ? static_cast<std::int64_t>(std::floor(x)) : -1;
-      values[i] = x;
+      values[i] = fault == kInfDescriptor ? INFINITY : x;
+      if (fault == kCellOutOfRange) cells[i] = kCells;
     }
   }
 };
@@ -100,6 +104,7 @@ class FirstCoordinate final : public Representation {
   void decode(const Matrix& z, Matrix& theta) const override {
     theta = Matrix::Zero(z.rows(), kP);
     theta.col(0) = z.col(0);
+    if (nan_decode) theta(0, 0) = NAN;
   }
   void decoder_jacobians(const Matrix& z, std::vector<Matrix>& j) const override {
     j.assign(static_cast<std::size_t>(z.rows()), Matrix::Zero(kP, 1));
@@ -109,6 +114,7 @@ class FirstCoordinate final : public Representation {
   void load(std::istream&) override {}
   std::vector<std::size_t> fitted_sizes;
   std::vector<int> fitted_loops;
+  bool nan_decode = false;  // a broken decoder (issue 20)
 };
 
 class NoModel final : public Representation {
@@ -235,9 +241,14 @@ TEST(MapElitesLoop, CoinFlipDecidesOnlyOccupiedCells) {
   w.loop->run_loop(1);
   const std::vector<bool> c0 = coins(w.s, 1, 0, 6);
   // Occupied in offspring order: cells 1, 2, 3, 4, 2, 5 -> coins 0..5.
-  const std::map<std::int64_t, double> expected = {
-      {1, c0[0] ? 10 : 0}, {2, c0[4] ? 15 : (c0[1] ? 11 : 0)}, {3, c0[2] ? 13 : 0},
-      {4, c0[3] ? 14 : 0}, {5, c0[5] ? 17 : 0},                 {9, 12}, {10, 16}, {6, 0}};
+  const std::map<std::int64_t, double> expected = {{1, c0[0] ? 10 : 0},
+                                                   {2, c0[4] ? 15 : (c0[1] ? 11 : 0)},
+                                                   {3, c0[2] ? 13 : 0},
+                                                   {4, c0[3] ? 14 : 0},
+                                                   {5, c0[5] ? 17 : 0},
+                                                   {9, 12},
+                                                   {10, 16},
+                                                   {6, 0}};
   const std::vector<bool> c1 = coins(w.s, 1, 1, 7);  // cell 20: added, then 7 coin draws
   double cell20 = 1;  // every offspring of iteration 1 is (20, 1): whatever wins, θ1 = 1
   for (const auto& [cell, fitness] : expected) EXPECT_EQ(w.param(cell, 1), fitness) << "cell " << cell;
@@ -296,7 +307,7 @@ TEST(MapElitesLoop, DatasetGrowsByTheNewCellsWithTheirFinalOccupants) {
   World::queue(*w.initial, {{1, 0}, {2, 0}});
   w.loop->run_loop(0);
   EXPECT_EQ(w.dataset->size(), 2u);
-  World::queue(*w.mutator, {{8, 1}, {1, 2}, {5, 3}});  // new 8, replace 1, new 5
+  World::queue(*w.mutator, {{8, 1}, {1, 2}, {5, 3}});   // new 8, replace 1, new 5
   World::queue(*w.mutator, {{8, 4}, {-1, 0}, {9, 5}});  // replace 8, invalid, new 9
   w.loop->run_loop(1);
   EXPECT_EQ(w.dataset->cells(), (std::vector<std::int64_t>{2, 1, 8, 5, 9}));
@@ -369,4 +380,83 @@ TEST(MapElitesLoop, CountsEvaluationsAndPassesTheMixingRatio) {
   EXPECT_EQ(w.recorder.mixing[1], 0.25);
   EXPECT_EQ(w.recorder.outcomes[2].iteration, 1);
   EXPECT_EQ(w.recorder.outcomes[2].loop, 1);
+}
+
+// Issue 20: a non-finite fitness or descriptor value makes that evaluation invalid (counted, never
+// stored), in loop 0 and in later loops alike.
+TEST(MapElitesLoop, NonFiniteFitnessOrDescriptorIsInvalidAndNeverStored) {
+  World w(false, 4, 4);
+  World::queue(*w.initial, {{1, 0, 0, kNanFitness}, {2, 0, 0, kInfDescriptor}, {3, 5}, {4, 6}});
+  w.loop->run_loop(0);
+  EXPECT_EQ(w.archive->size(), 2u);
+  EXPECT_EQ(w.archive->slot_of(1), -1);
+  EXPECT_EQ(w.archive->slot_of(2), -1);
+  EXPECT_EQ(w.recorder.outcomes[0].invalid, 2u);
+  World::queue(*w.mutator, {{3, 9, 0, kNanFitness}, {4, 9, 0, kInfDescriptor}, {5, 1}, {6, 1}});
+  World::queue(*w.mutator, std::vector<std::vector<double>>(4, {7, 0}));
+  w.s.insertion = "fitness";  // a NaN would otherwise win or block a cell forever
+  w.loop->run_loop(1);
+  EXPECT_EQ(w.param(3, 1), 5.0);
+  EXPECT_EQ(w.param(4, 1), 6.0);
+  EXPECT_EQ(w.recorder.outcomes[1].invalid, 2u);
+  for (std::size_t slot = 0; slot < w.archive->size(); ++slot) {
+    EXPECT_TRUE(std::isfinite(w.archive->fitness(slot)));
+    EXPECT_TRUE(std::isfinite(w.archive->descriptor(slot)[0]));
+  }
+}
+
+// A cell index outside the grid is a PluginError naming the descriptor and the offspring, raised
+// before the archive is touched.
+TEST(MapElitesLoop, CellOutOfRangeIsAPluginErrorBeforeTheArchive) {
+  World w(false, 4, 3);
+  w.c.descriptor_label = "descriptor 'scripted' (test)";
+  World::queue(*w.initial, {{1, 0}, {2, 0, 0, kCellOutOfRange}, {3, 0}});
+  try {
+    w.loop->run_loop(0);
+    FAIL() << "expected a PluginError";
+  } catch (const PluginError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("descriptor 'scripted' (test) returned cell 50, outside its grid's [0, 50)"), std::string::npos)
+        << what;
+    EXPECT_NE(what.find("offspring 1 of loop 0, iteration 0"), std::string::npos) << what;
+  }
+  EXPECT_EQ(w.archive->size(), 0u);
+}
+
+// A mutator's batch of the wrong shape or with a non-finite parameter is a PluginError naming it.
+TEST(MapElitesLoop, BadMutatorOutputIsAPluginError) {
+  World w(false, 4, 2);
+  w.c.mutator_label = "mutator 'scripted' (test)";
+  World::queue(*w.initial, {{1, 0}, {2, 0}});
+  w.loop->run_loop(0);
+  World::queue(*w.mutator, {{3, 0}, {4, NAN}, {5, 0}, {6, 0}});
+  try {
+    w.loop->run_loop(1);
+    FAIL() << "expected a PluginError";
+  } catch (const PluginError& e) {
+    EXPECT_NE(std::string(e.what()).find("mutator 'scripted' (test) returned parameter nan (offspring 1, parameter 1) "
+                                         "in loop 1, iteration 0"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(w.archive->size(), 2u);
+}
+
+// A representation's non-finite output is a PluginError naming the representation.
+TEST(MapElitesLoop, BadRepresentationOutputIsAPluginErrorNamingIt) {
+  World w(true, 4, 2);
+  w.c.representation_label = "representation 'first' (test)";
+  World::queue(*w.initial, {{1, 0}, {2, 0}});
+  w.loop->run_loop(0);
+  w.model->nan_decode = true;
+  World::queue(*w.mutator, std::vector<std::vector<double>>(4, {3, 0}));
+  try {
+    w.loop->run_loop(1);
+    FAIL() << "expected a PluginError";
+  } catch (const PluginError& e) {
+    EXPECT_NE(std::string(e.what()).find("representation 'first' (test) decode() returned nan (row 0, column 0)"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(w.archive->size(), 2u);
 }

@@ -110,6 +110,14 @@ Components build_components(Experiment& ex, const Registry& registry) {
   c.mutator_type = ex.mutator.type;
   c.initial_type = ex.initial.type;
   c.representation_type = ex.representation.type;
+  auto label = [](const ComponentConfig& cc, const std::string& kind) {
+    return kind + " '" + cc.type + "' (" + cc.entry->plugin->path + ")";
+  };
+  c.environment_label = label(ex.environment, "environment");
+  c.descriptor_label = label(ex.descriptor, "descriptor");
+  c.representation_label = label(ex.representation, "representation");
+  c.mutator_label = label(ex.mutator, "mutator");
+  c.initial_label = label(ex.initial, "initial sampler");
 
   for (const ComponentConfig* cc : {&ex.environment, &ex.descriptor, &ex.representation, &ex.mutator, &ex.initial}) {
     const PluginInfo& pi = *cc->entry->plugin->info;

@@ -27,6 +27,10 @@ struct Components {
   Owned<Mutator> initial;                                       // loop 0
   std::string mutator_type, initial_type, representation_type;  // component names, for messages
   std::vector<std::string> metric_names;                        // the mutator's extra metrics.csv columns
+  // How messages name each component: "mutator 'iso' (/path/qd_basic.so)".
+  std::string environment_label = "the environment", descriptor_label = "the descriptor",
+              representation_label = "the representation", mutator_label = "the mutator",
+              initial_label = "the initial sampler";
   // One TOML inline table per component (table, component, plugin, version, path), for provenance.
   std::vector<std::string> provenance;
 };

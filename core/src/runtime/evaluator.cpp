@@ -53,18 +53,39 @@ void WorkerPool::run(std::size_t n, const std::function<void(std::size_t)>& fn) 
   n_ = n;
   next_ = 0;
   finished_ = 0;
+  error_ = nullptr;
   ++generation_;
   wake_.notify_all();
   // The caller works too.
   while (next_ < n_) {
     const std::size_t i = next_++;
-    lock.unlock();
-    fn(i);
-    lock.lock();
-    ++finished_;
+    call(i, fn, lock);
   }
   done_.wait(lock, [&] { return finished_ == n_ && busy_ == 0; });
   job_ = nullptr;
+  if (error_) {
+    std::exception_ptr error = std::move(error_);
+    error_ = nullptr;
+    lock.unlock();
+    std::rethrow_exception(error);
+  }
+}
+
+void WorkerPool::call(std::size_t i, const std::function<void(std::size_t)>& fn, std::unique_lock<std::mutex>& lock) {
+  lock.unlock();
+  std::exception_ptr error;
+  try {
+    fn(i);
+  } catch (...) {
+    error = std::current_exception();
+  }
+  lock.lock();
+  ++finished_;
+  if (error) {
+    if (!error_) error_ = std::move(error);
+    finished_ += n_ - next_;  // the indices never handed out count as done
+    next_ = n_;
+  }
 }
 
 void WorkerPool::work() {
@@ -77,11 +98,7 @@ void WorkerPool::work() {
     ++busy_;
     while (job_ && next_ < n_) {
       const std::size_t i = next_++;
-      const auto* fn = job_;
-      lock.unlock();
-      (*fn)(i);
-      lock.lock();
-      ++finished_;
+      call(i, *job_, lock);
     }
     --busy_;
     if (finished_ == n_ && busy_ == 0) done_.notify_all();
@@ -109,36 +126,103 @@ void unpack_records(const double* records, std::size_t begin, std::size_t end, s
   }
 }
 
-RowEvaluator::RowEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape)
-    : env_(env), desc_(desc), shape_(shape), dims_(desc.grid().shape.size()) {}
+namespace {
+std::string what_of(const std::exception_ptr& e) {
+  try {
+    std::rethrow_exception(e);
+  } catch (const std::exception& x) {
+    return x.what();
+  } catch (...) {
+    return "an exception that is not a std::exception";
+  }
+}
+}  // namespace
 
-void RowEvaluator::run(const double* params, const std::uint64_t* seeds, std::size_t rows, double* records) {
+void guarded_rollout(const Environment& env, const std::string& label, const RolloutBatch& b, Trace* traces,
+                     std::size_t offset) {
+  std::exception_ptr error;
+  try {
+    env.rollout(b, traces);
+    return;
+  } catch (...) {
+    error = std::current_exception();
+  }
+  if (b.end - b.begin > 1) {
+    for (std::size_t i = b.begin; i < b.end; ++i) {
+      RolloutBatch one = b;
+      one.begin = i;
+      one.end = i + 1;
+      traces[i].clear();
+      try {
+        env.rollout(one, traces);
+      } catch (...) {
+        throw EvaluationFault(label + " threw from rollout(): " + what_of(std::current_exception()), offset + i,
+                              offset + i);
+      }
+    }
+  }
+  throw EvaluationFault(label + " threw from rollout(): " + what_of(error), offset + b.begin, offset + b.end - 1);
+}
+
+void guarded_describe(const Descriptor& desc, const std::string& label, const Trace& t, std::int64_t* cell,
+                      double* values, std::size_t offspring) {
+  try {
+    desc.describe(&t, 1, cell, values);
+  } catch (...) {
+    throw EvaluationFault(label + " threw from describe(): " + what_of(std::current_exception()), offspring, offspring);
+  }
+}
+
+RowEvaluator::RowEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape,
+                           PluginLabels labels)
+    : env_(env), desc_(desc), shape_(shape), labels_(std::move(labels)), dims_(desc.grid().shape.size()) {}
+
+void RowEvaluator::run(const double* params, const std::uint64_t* seeds, std::size_t rows, double* records,
+                       std::size_t first_row, std::atomic<std::uint64_t>* current) {
   const auto P = static_cast<Eigen::Index>(shape_.param_count());
   // Rollouts take a Matrix; copying a chunk's rows costs far less than its episodes.
   block_.resize(static_cast<Eigen::Index>(rows), P);
   std::copy(params, params + rows * static_cast<std::size_t>(P), block_.data());
   if (traces_.size() < rows) traces_.resize(rows);
   for (std::size_t i = 0; i < rows; ++i) traces_[i].clear();
-  RolloutBatch b{&shape_, &block_, seeds, 0, rows};
-  env_.rollout(b, traces_.data());
+  if (!current) {
+    guarded_rollout(env_, labels_.environment, RolloutBatch{&shape_, &block_, seeds, 0, rows}, traces_.data(),
+                    first_row);
+  } else {
+    for (std::size_t i = 0; i < rows; ++i) {
+      current->store(progress_code(first_row + i, false), std::memory_order_relaxed);
+      guarded_rollout(env_, labels_.environment, RolloutBatch{&shape_, &block_, seeds, i, i + 1}, traces_.data(),
+                      first_row);
+    }
+  }
   const std::size_t w = record_width(dims_);
   for (std::size_t i = 0; i < rows; ++i) {
     double* r = records + i * w;
     const Trace& t = traces_[i];
     std::int64_t cell = -1;
     std::fill(r + kRecordHead, r + w, 0.0);
-    if (t.status == EvalStatus::kOk) desc_.describe(&t, 1, &cell, r + kRecordHead);
+    if (t.status == EvalStatus::kOk) {
+      if (current) current->store(progress_code(first_row + i, true), std::memory_order_relaxed);
+      guarded_describe(desc_, labels_.descriptor, t, &cell, r + kRecordHead, first_row + i);
+    }
     r[0] = static_cast<double>(static_cast<int>(t.status));
     r[1] = static_cast<double>(t.steps);
     r[2] = t.fitness;
     r[3] = static_cast<double>(cell);
   }
+  if (current) current->store(0, std::memory_order_relaxed);
 }
 
 Evaluator::~Evaluator() = default;
 
-ThreadEvaluator::ThreadEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers)
-    : env_(env), desc_(desc), shape_(shape), dims_(desc.grid().shape.size()), pool_(workers) {}
+ThreadEvaluator::ThreadEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers,
+                                 PluginLabels labels)
+    : env_(env),
+      desc_(desc),
+      shape_(shape),
+      labels_(std::move(labels)),
+      dims_(desc.grid().shape.size()),
+      pool_(workers) {}
 
 void ThreadEvaluator::evaluate_rows(const Matrix& params, const std::uint64_t* seeds, std::size_t begin,
                                     std::size_t end, Evaluations& out) {
@@ -149,14 +233,15 @@ void ThreadEvaluator::evaluate_rows(const Matrix& params, const std::uint64_t* s
   b.begin = begin;
   b.end = end;
   for (std::size_t i = begin; i < end; ++i) traces_[i].clear();
-  env_.rollout(b, traces_.data());
+  guarded_rollout(env_, labels_.environment, b, traces_.data(), 0);
   for (std::size_t i = begin; i < end; ++i) {
     const Trace& t = traces_[i];
     out.status[i] = t.status;
     out.steps[i] = t.steps;
     out.fitness[i] = t.fitness;
     if (t.status == EvalStatus::kOk)
-      desc_.describe(&t, 1, &out.cells[i], out.descriptors.row(static_cast<Eigen::Index>(i)).data());
+      guarded_describe(desc_, labels_.descriptor, t, &out.cells[i],
+                       out.descriptors.row(static_cast<Eigen::Index>(i)).data(), i);
   }
 }
 
@@ -182,15 +267,14 @@ void ThreadEvaluator::evaluate(const Matrix& params, const std::vector<std::uint
   });
 }
 
-std::string resolve_backend(const std::string& requested, int workers) {
+std::string resolve_backend(const std::string& requested) {
   if (requested != "auto") return requested;
-  if (mpi_active()) return "mpi";
-  return workers > 1 ? "processes" : "threads";
+  return mpi_active() ? "mpi" : "processes";
 }
 
 std::unique_ptr<Evaluator> make_evaluator(const EvaluatorSpec& spec, const Environment& env, const Descriptor& desc,
                                           const PolicyShape& shape) {
-  const std::string backend = resolve_backend(spec.backend, spec.workers);
+  const std::string backend = resolve_backend(spec.backend);
   if (backend == "mpi") {
     if (!mpi_built())
       throw InputError(
@@ -202,9 +286,10 @@ std::unique_ptr<Evaluator> make_evaluator(const EvaluatorSpec& spec, const Envir
   if (mpi_active() && mpi_size() > 1)
     throw InputError("[evaluation] backend = \"" + backend + "\" under mpirun with " + std::to_string(mpi_size()) +
                      " ranks: every rank would run the whole experiment; use backend = \"mpi\" (or \"auto\")");
-  if (backend == "processes" && spec.workers > 1)
-    return std::make_unique<ProcessEvaluator>(env, desc, shape, spec.workers, spec.capacity, spec.timeout_seconds);
-  return std::make_unique<ThreadEvaluator>(env, desc, shape, spec.workers);
+  if (backend == "processes")
+    return std::make_unique<ProcessEvaluator>(env, desc, shape, spec.workers, spec.capacity, spec.timeout_seconds,
+                                              spec.labels);
+  return std::make_unique<ThreadEvaluator>(env, desc, shape, spec.workers, spec.labels);
 }
 
 #ifndef QD_WITH_MPI

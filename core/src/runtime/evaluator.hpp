@@ -13,7 +13,9 @@
 #include <qd/policy.hpp>
 #include <qd/types.hpp>
 
+#include <atomic>
 #include <condition_variable>
+#include <exception>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -35,11 +37,37 @@ struct Evaluations {
   void reset(std::size_t n, std::size_t dims);
 };
 
-// A worker process or rank died or hung: the run stops, its last checkpoint stays valid.
+// The run failed during evaluation: a worker process or rank died or hung, or (rethrown by qdrun)
+// a plugin broke its contract mid-run. The run stops, its last checkpoint stays valid; exit code 3.
 class WorkerFailure : public Error {
  public:
   using Error::Error;
 };
+
+// A plugin failed on rows [first, last] of the batch being evaluated: rollout() or describe()
+// threw, returned output that breaks the contract, or the worker process running it crashed,
+// exited or hung. MapElites adds the loop and iteration and saves those offspring's parameters.
+class EvaluationFault : public PluginError {
+ public:
+  EvaluationFault(const std::string& what, std::size_t first_row, std::size_t last_row)
+      : PluginError(what), first(first_row), last(last_row) {}
+  std::size_t first, last;
+};
+
+// How messages name the plugins an evaluator runs, e.g. "environment 'arm' (/path/qd_arm.so)".
+struct PluginLabels {
+  std::string environment = "the environment";
+  std::string descriptor = "the descriptor";
+};
+
+// Rollouts of rows [b.begin, b.end). An exception becomes an EvaluationFault naming the environment
+// and the offspring that throws, found by running the rows again one at a time (rollouts are
+// deterministic and stateless); `offset` turns the rows of `b` into offspring indices.
+void guarded_rollout(const Environment& env, const std::string& label, const RolloutBatch& b, Trace* traces,
+                     std::size_t offset);
+// describe() of one trace; an exception becomes an EvaluationFault naming the descriptor.
+void guarded_describe(const Descriptor& desc, const std::string& label, const Trace& t, std::int64_t* cell,
+                      double* values, std::size_t offspring);
 
 // Packed per-offspring record used by the process and MPI backends: status, steps, fitness, cell,
 // then the descriptor values, all as doubles (status, steps and cell are small integers, exact).
@@ -63,15 +91,24 @@ inline std::size_t largest_chunk(std::size_t n, std::size_t workers) {
 // Evaluates rows of a parameter block into packed records; owns its trace scratch (one per worker).
 class RowEvaluator {
  public:
-  RowEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape);
+  RowEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, PluginLabels labels = {});
   std::size_t dims() const noexcept { return dims_; }
-  // Rows [0, rows) of the row-major block `params` (rows × P) with their seeds -> rows records.
-  void run(const double* params, const std::uint64_t* seeds, std::size_t rows, double* records);
+  // Rows [0, rows) of the row-major block `params` (rows × P) with their seeds -> rows records;
+  // they are offspring first_row, first_row + 1, ... of the batch. With `current`, rows run one
+  // rollout call each and `current` holds what runs (progress_code), so a supervisor can name the
+  // offspring and the component that crashed or hung.
+  void run(const double* params, const std::uint64_t* seeds, std::size_t rows, double* records,
+           std::size_t first_row = 0, std::atomic<std::uint64_t>* current = nullptr);
+  const PluginLabels& labels() const noexcept { return labels_; }
+
+  // `current` while offspring `row` is in rollout() (describing = false) or describe(); 0 = idle.
+  static std::uint64_t progress_code(std::size_t row, bool describing) { return 2 * (row + 1) + (describing ? 1 : 0); }
 
  private:
   const Environment& env_;
   const Descriptor& desc_;
   PolicyShape shape_;
+  PluginLabels labels_;
   std::size_t dims_;
   Matrix block_;
   std::vector<Trace> traces_;
@@ -104,12 +141,17 @@ class WorkerPool {
  private:
   void work();
   void stop();  // ends and joins the threads
+  // fn(i) with the lock released. The first exception ends the job: no further index is handed
+  // out, and run() rethrows it once every call in progress has returned (the job and everything
+  // it refers to live in run()'s caller, so no thread may still use them after run() returns).
+  void call(std::size_t i, const std::function<void(std::size_t)>& fn, std::unique_lock<std::mutex>& lock);
   std::vector<std::thread> threads_;
   std::mutex mutex_;
   std::condition_variable wake_, done_;
   const std::function<void(std::size_t)>* job_ = nullptr;
   std::size_t n_ = 0, next_ = 0, finished_ = 0;
   std::uint64_t generation_ = 0;
+  std::exception_ptr error_;
   int busy_ = 0;
   bool stop_ = false;
 };
@@ -117,7 +159,8 @@ class WorkerPool {
 // Serial (1 worker) or local threads.
 class ThreadEvaluator final : public Evaluator {
  public:
-  ThreadEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers);
+  ThreadEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers,
+                  PluginLabels labels = {});
 
   int workers() const noexcept override { return pool_.size(); }
   const char* backend() const noexcept override { return "threads"; }
@@ -132,6 +175,7 @@ class ThreadEvaluator final : public Evaluator {
   const Environment& env_;
   const Descriptor& desc_;
   PolicyShape shape_;
+  PluginLabels labels_;
   std::size_t dims_;
   std::vector<Trace> traces_;  // one per offspring, reused across batches
   WorkerPool pool_;
@@ -143,11 +187,14 @@ struct EvaluatorSpec {
   std::size_t capacity = 0;      // largest batch (rows) the process backend must hold
   double timeout_seconds = 0;    // a worker process/rank silent this long in a batch is hung (0 = never)
   std::string status_file;       // written by the MPI backend when mpirun terminates the job
+  PluginLabels labels;
 };
 
-// The backend "auto" resolves to: mpi when launched by mpirun, else processes with > 1 worker
-// (faster than threads for Box2D on this machine, see README), else serial.
-std::string resolve_backend(const std::string& requested, int workers);
+// The backend "auto" resolves to mpi when launched by mpirun, else processes: supervised worker
+// processes, one or more, so a crash, exit() or hang of plugin code never takes down the process
+// that owns the run directory (and they are faster than threads for Box2D on this machine).
+// "threads" runs rollouts inside qdrun (with one worker: serially, unsupervised).
+std::string resolve_backend(const std::string& requested);
 std::unique_ptr<Evaluator> make_evaluator(const EvaluatorSpec& spec, const Environment& env, const Descriptor& desc,
                                           const PolicyShape& shape);
 

@@ -215,7 +215,8 @@ const ParamSpec kOutputParams[] = {
 const ParamSpec kEvaluationParams[] = {
     param_int("workers", "0", 0, 4096, "local evaluation workers (0 = all cores); results do not depend on it"),
     param_string("backend", "\"auto\"", "auto|threads|processes|mpi",
-                 "auto = mpi under mpirun, else processes with more than one worker; results do not depend on it"),
+                 "auto = mpi under mpirun, else processes (supervised worker processes, also for one worker); "
+                 "threads = inside qdrun, unsupervised; results do not depend on it"),
     param_float("timeout_seconds", "300", 0.0, 1e9,
                 "a worker process or MPI rank that makes no progress this long in a batch is hung: the run "
                 "stops (0 = wait forever; the threads backend cannot time out)"),

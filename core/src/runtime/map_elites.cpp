@@ -1,5 +1,7 @@
 #include "runtime/map_elites.hpp"
 
+#include "runtime/csv.hpp"
+
 #include <qd/errors.hpp>
 #include <qd/rng.hpp>
 
@@ -17,14 +19,18 @@ MapElites::MapElites(const ExperimentSettings& settings, Components& components,
       archive_(archive),
       dataset_(dataset),
       observer_(observer),
-      run_dir_(std::move(run_dir)) {}
+      run_dir_(std::move(run_dir)),
+      checks_(components),
+      representation_(components, checks_) {}
 
 void MapElites::run_loop(int loop) {
   if (loop == 0) {
     initial_sampling();
   } else {
     new_cells_.clear();
-    c_.mutator->begin_loop(LoopContext{loop, &archive_, &dataset_, c_.representation.get()});
+    call_plugin(c_.mutator_label, "begin_loop()", [&] {
+      c_.mutator->begin_loop(LoopContext{loop, &archive_, &dataset_, &representation_});
+    });
     for (int it = 0; it < s_.iterations; ++it) iterate(loop, it);
     // D gains the current occupant of every cell discovered in this loop (paper, Sec. 3).
     for (std::int64_t cell : new_cells_)
@@ -39,14 +45,13 @@ void MapElites::initial_sampling() {
   parents_.theta.resize(0, static_cast<Eigen::Index>(P));  // samplers take no parents
   offspring_.reset(n, P, 0);
   Rng rng(s_.seed, Stream::kInitial, 0);
-  MutateContext mctx{0, 0, &rng, c_.representation.get(), &archive_};
-  c_.initial->mutate(parents_, n, mctx, offspring_);
-  if (static_cast<std::size_t>(offspring_.theta.rows()) != n || static_cast<std::size_t>(offspring_.theta.cols()) != P)
-    throw Error("initial sampler '" + c_.initial_type + "' returned a batch of the wrong shape");
+  MutateContext mctx{0, 0, &rng, &representation_, &archive_};
+  call_plugin(c_.initial_label, "mutate()", [&] { c_.initial->mutate(parents_, n, mctx, offspring_); });
+  checks_.offspring(offspring_, true, n, 0, 0, 0);
 
   seeds_.resize(n);
   for (std::size_t i = 0; i < n; ++i) seeds_[i] = Rng::derive_seed(s_.seed, Stream::kEpisode, 0, 0, i);
-  evaluator_.evaluate(offspring_.theta, seeds_, evaluated_);
+  evaluate(0, 0);
   evaluations_ += n;
 
   // The archive starts as the first-sampled policy of each distinct cell (never a replacement).
@@ -91,18 +96,15 @@ void MapElites::iterate(int loop, int it) {
   // 2. Variation.
   offspring_.reset(batch, P, LD);
   Rng rng(s_.seed, Stream::kMutation, l, i);
-  MutateContext mctx{loop, it, &rng, c_.representation.get(), &archive_};
-  c_.mutator->mutate(parents_, batch, mctx, offspring_);
-  if (static_cast<std::size_t>(offspring_.theta.rows()) != batch ||
-      static_cast<std::size_t>(offspring_.theta.cols()) != P || offspring_.has_latent.size() != batch ||
-      offspring_.metrics.size() != c_.metric_names.size())
-    throw Error("mutator '" + c_.mutator_type + "' returned a batch of the wrong shape");
+  MutateContext mctx{loop, it, &rng, &representation_, &archive_};
+  call_plugin(c_.mutator_label, "mutate()", [&] { c_.mutator->mutate(parents_, batch, mctx, offspring_); });
+  checks_.offspring(offspring_, false, batch, LD, loop, it);
   reconstruction_errors(offspring_);
 
   // 3. Evaluation: one episode per offspring, seeded by its place in the run.
   seeds_.resize(batch);
   for (std::size_t k = 0; k < batch; ++k) seeds_[k] = Rng::derive_seed(s_.seed, Stream::kEpisode, l, i, k);
-  evaluator_.evaluate(offspring_.theta, seeds_, evaluated_);
+  evaluate(loop, it);
   evaluations_ += batch;
 
   // 4. Insertion, then the mutator hears what became of its offspring.
@@ -117,8 +119,48 @@ void MapElites::iterate(int loop, int it) {
   fb.rejected = outcome.rejected;
   fb.invalid = outcome.invalid;
   fb.outcomes = &outcomes_;
-  c_.mutator->feedback(fb);
+  call_plugin(c_.mutator_label, "feedback()", [&] { c_.mutator->feedback(fb); });
   observer_.iteration_done(outcome);
+}
+
+void MapElites::evaluate(int loop, int it) {
+  try {
+    evaluator_.evaluate(offspring_.theta, seeds_, evaluated_);
+    checks_.evaluations(evaluated_, loop, it);
+  } catch (const EvaluationFault& f) {
+    const std::string which = f.first == f.last
+                                  ? "offspring " + std::to_string(f.first)
+                                  : "one of offspring " + std::to_string(f.first) + " to " + std::to_string(f.last);
+    const std::string file = save_fault_offspring(loop, it, f.first, f.last);
+    throw PluginError(std::string(f.what()) + " (" + which + " of loop " + std::to_string(loop) + ", iteration " +
+                      std::to_string(it) + (file.empty() ? "" : "; parameters and episode seed in " + file) + ")");
+  }
+}
+
+std::string MapElites::save_fault_offspring(int loop, int it, std::size_t first, std::size_t last) const {
+  if (run_dir_.empty() || first > last || last >= static_cast<std::size_t>(offspring_.theta.rows())) return "";
+  const std::string path = run_dir_ + "/fault-offspring.csv";
+  std::string text = "loop,iteration,offspring,episode_seed";
+  for (Eigen::Index p = 0; p < offspring_.theta.cols(); ++p) text += ",solution_" + std::to_string(p);
+  text += '\n';
+  for (std::size_t k = first; k <= last; ++k) {
+    for (const std::int64_t v : {std::int64_t{loop}, std::int64_t{it}, static_cast<std::int64_t>(k)}) {
+      append_int(text, v);
+      text += ',';
+    }
+    text += std::to_string(seeds_[k]);
+    for (Eigen::Index p = 0; p < offspring_.theta.cols(); ++p) {
+      text += ',';
+      append_number(text, offspring_.theta(static_cast<Eigen::Index>(k), p));
+    }
+    text += '\n';
+  }
+  try {
+    write_file_atomic(path, text);
+  } catch (const std::exception&) {
+    return "";  // the fault itself is what the user must see
+  }
+  return path;
 }
 
 void MapElites::insert(int loop, int it, IterationOutcome& outcome) {
@@ -175,11 +217,11 @@ void MapElites::reconstruction_errors(Offspring& off) {
     for (std::size_t k = 0; k < missing.size(); ++k)
       theta.row(static_cast<Eigen::Index>(k)) = off.theta.row(missing[k]);
     Matrix z;
-    c_.representation->encode(theta, z);
+    representation_.encode(theta, z);
     for (std::size_t k = 0; k < missing.size(); ++k) off.latent.row(missing[k]) = z.row(static_cast<Eigen::Index>(k));
   }
   Matrix decoded;
-  c_.representation->decode(off.latent, decoded);
+  representation_.decode(off.latent, decoded);
   recn_ = (off.theta - decoded).rowwise().norm();
 }
 
@@ -187,13 +229,13 @@ void MapElites::fit_representation(int loop) {
   if (c_.representation->latent_size() == 0) return;
   observer_.training_started(loop);
   const auto t0 = std::chrono::steady_clock::now();
-  const FitReport report = c_.representation->fit(dataset_, FitContext{loop, s_.seed, run_dir_});
+  const FitReport report = representation_.fit(dataset_, FitContext{loop, s_.seed, run_dir_});
   observer_.training_done(loop, report, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   if (loop == 0) {
     // At loop 1 the archive is rebuilt from D with the errors of the loop-0 model (paper, Sec. 3);
     // later errors stay as stored at insertion (the reference's stale values).
     Vector err;
-    c_.representation->reconstruction_errors(Matrix(dataset_.params()), err);
+    representation_.reconstruction_errors(Matrix(dataset_.params()), err);
     for (std::size_t k = 0; k < dataset_.size(); ++k)
       archive_.set_recn_error(static_cast<std::size_t>(archive_.slot_of(dataset_.cells()[k])),
                               err[static_cast<Eigen::Index>(k)]);

@@ -15,6 +15,7 @@
 #include "runtime/components.hpp"
 #include "runtime/evaluator.hpp"
 #include "runtime/experiment.hpp"
+#include "runtime/plugin_output_checks.hpp"
 
 #include <qd/dataset.hpp>
 #include <qd/mutator.hpp>
@@ -57,6 +58,12 @@ class MapElites {
  private:
   void initial_sampling();
   void iterate(int loop, int iteration);
+  // Evaluates offspring_.theta with seeds_ into evaluated_ and checks the result. A plugin fault on
+  // particular offspring is rethrown with the loop, iteration and offspring index, and their
+  // parameters and episode seeds are saved to fault-offspring.csv in the run directory.
+  void evaluate(int loop, int iteration);
+  // Writes fault-offspring.csv; returns its path, or "" when there is no run directory or it fails.
+  std::string save_fault_offspring(int loop, int iteration, std::size_t first, std::size_t last) const;
   // Inserts the evaluated batch in offspring order and counts what happened.
   void insert(int loop, int iteration, IterationOutcome& outcome);
   // ‖θ′ − Dec(z′)‖ of every offspring, z′ = its latent origin or Enc(θ′) (0 without a model).
@@ -70,6 +77,8 @@ class MapElites {
   Dataset& dataset_;
   LoopObserver& observer_;
   std::string run_dir_;
+  PluginOutputChecks checks_;
+  CheckedRepresentation representation_;  // c_.representation, its output checked
   std::uint64_t evaluations_ = 0;
 
   // Per-iteration buffers, kept to avoid reallocating multi-megabyte batches.

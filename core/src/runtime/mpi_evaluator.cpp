@@ -161,7 +161,7 @@ int as_count(std::size_t n) {
 class MpiEvaluator final : public Evaluator {
  public:
   MpiEvaluator(const EvaluatorSpec& spec, const Environment& env, const Descriptor& desc, const PolicyShape& shape)
-      : own_(env, desc, shape),
+      : own_(env, desc, shape, spec.labels),
         P_(shape.param_count()),
         dims_(desc.grid().shape.size()),
         width_(record_width(dims_)),
@@ -281,7 +281,7 @@ class MpiEvaluator final : public Evaluator {
       if (next < n) {
         // Rank 0 takes single rows: no messages to save, and it fills the gaps at the end.
         const std::size_t i = next++;
-        own_.run(params.row(static_cast<Eigen::Index>(i)).data(), seeds.data() + i, 1, mine.data());
+        own_.run(params.row(static_cast<Eigen::Index>(i)).data(), seeds.data() + i, 1, mine.data(), i);
         unpack_records(mine.data(), i, i + 1, dims_, out);
         ++rows_done;
         service();
@@ -353,7 +353,7 @@ class MpiEvaluator final : public Evaluator {
           break;
         }
         QD_CHECK(begin + count <= n && count <= largest, "a row range inside the batch");
-        own_.run(params.data() + begin * P_, seeds.data() + begin, count, outbox.data() + 2);
+        own_.run(params.data() + begin * P_, seeds.data() + begin, count, outbox.data() + 2, begin);
         check(MPI_Send(outbox.data(), as_count(2 + count * width_), MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD),
               "MPI send");
       }

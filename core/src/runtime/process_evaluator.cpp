@@ -22,6 +22,7 @@ namespace qd::runtime {
 namespace {
 
 constexpr std::size_t kErrorBytes = 1024;
+constexpr std::size_t kMaxWorkers = 4096;  // [evaluation] workers' upper bound
 
 std::size_t round_up(std::size_t bytes) {
   return (bytes + 63) / 64 * 64;
@@ -46,18 +47,24 @@ struct ProcessEvaluator::Control {
   std::atomic<std::uint64_t> finished{0};  // rows done in this batch (progress, for the timeout)
   std::uint64_t rows = 0, workers = 1, largest = 1;
   std::atomic<int> error_owner{-1};
+  std::uint64_t error_first = 0, error_last = 0;  // rows of an EvaluationFault
+  bool error_has_rows = false;
   char error[kErrorBytes] = {0};
+  // Per worker (1-based): what it evaluates now, RowEvaluator::progress_code, 0 = between offspring.
+  std::atomic<std::uint64_t> current[kMaxWorkers + 1] = {};
 };
 static_assert(std::atomic<std::uint64_t>::is_always_lock_free, "shared counters must be lock-free");
 
 ProcessEvaluator::ProcessEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape,
-                                   int workers, std::size_t capacity, double timeout_seconds)
+                                   int workers, std::size_t capacity, double timeout_seconds, PluginLabels labels)
     : P_(shape.param_count()),
       dims_(desc.grid().shape.size()),
       width_(record_width(dims_)),
       capacity_(std::max<std::size_t>(capacity, 1)),
       timeout_(timeout_seconds),
-      own_(env, desc, shape) {
+      own_(env, desc, shape, std::move(labels)) {
+  if (workers > static_cast<int>(kMaxWorkers))
+    throw InputError("at most " + std::to_string(kMaxWorkers) + " worker processes");
   const std::size_t ctl_bytes = round_up(sizeof(Control));
   const std::size_t params_bytes = round_up(capacity_ * P_ * sizeof(double));
   const std::size_t seeds_bytes = round_up(capacity_ * sizeof(std::uint64_t));
@@ -73,7 +80,7 @@ ProcessEvaluator::ProcessEvaluator(const Environment& env, const Descriptor& des
 
   // Every socket pair exists before the first fork, so each child can close all ends but its own:
   // otherwise a sibling holding a copy would hide a dead worker's end of file.
-  const auto n = static_cast<std::size_t>(std::max(workers, 1) - 1);
+  const auto n = static_cast<std::size_t>(std::max(workers, 1));
   std::vector<std::array<int, 2>> pairs(n);
   for (auto& p : pairs)
     if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, p.data()) != 0) {
@@ -138,7 +145,13 @@ void ProcessEvaluator::child_main(int w, int fd) {
         work(w, ev);
       } catch (const std::exception& e) {
         int none = -1;
-        if (ctl_->error_owner.compare_exchange_strong(none, w)) std::strncpy(ctl_->error, e.what(), kErrorBytes - 1);
+        if (ctl_->error_owner.compare_exchange_strong(none, w)) {
+          std::strncpy(ctl_->error, e.what(), kErrorBytes - 1);
+          const auto* fault = dynamic_cast<const EvaluationFault*>(&e);
+          ctl_->error_has_rows = fault != nullptr;
+          if (fault) ctl_->error_first = fault->first, ctl_->error_last = fault->last;
+        }
+        ctl_->current[w].store(0);
         reply = 'e';
       }
       if (::send(fd, &reply, 1, MSG_NOSIGNAL) != 1) std::_Exit(0);
@@ -149,7 +162,7 @@ void ProcessEvaluator::child_main(int w, int fd) {
   std::_Exit(1);
 }
 
-void ProcessEvaluator::work(int, RowEvaluator& ev) {
+void ProcessEvaluator::work(int w, RowEvaluator& ev) {
   const std::size_t rows = ctl_->rows;
   for (;;) {
     std::uint64_t begin = ctl_->next.load();
@@ -158,15 +171,24 @@ void ProcessEvaluator::work(int, RowEvaluator& ev) {
       if (begin >= rows) return;
       count = guided_chunk(rows - begin, ctl_->workers, ctl_->largest);
     } while (!ctl_->next.compare_exchange_weak(begin, begin + count));
-    ev.run(params_ + begin * P_, seeds_ + begin, count, records_ + begin * width_);
+    ev.run(params_ + begin * P_, seeds_ + begin, count, records_ + begin * width_, begin,
+           &ctl_->current[static_cast<std::size_t>(w)]);
     ctl_->finished.fetch_add(count);
   }
 }
 
-void ProcessEvaluator::fail(const std::string& message) {
+std::string ProcessEvaluator::doing(std::uint64_t current) const {
+  if (current == 0) return "";
+  const PluginLabels& l = own_.labels();
+  return current % 2 == 1 ? " in describe() of " + l.descriptor : " in rollout() of " + l.environment;
+}
+
+void ProcessEvaluator::fail(const std::string& message, std::uint64_t current) {
   broken_ = true;
   shut_down();
-  throw WorkerFailure(message);
+  if (current == 0) throw WorkerFailure(message);
+  const std::size_t row = current / 2 - 1;
+  throw EvaluationFault(message, row, row);
 }
 
 void ProcessEvaluator::evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, Evaluations& out) {
@@ -186,6 +208,7 @@ void ProcessEvaluator::evaluate(const Matrix& params, const std::vector<std::uin
   ctl_->largest = largest_chunk(n, ctl_->workers);
   ctl_->finished.store(0);
   ctl_->next.store(0);
+  ctl_->error_owner.store(-1);
   std::vector<std::size_t> pending;
   for (std::size_t k = 0; k < children_.size(); ++k) {
     const char go = 'g';
@@ -193,7 +216,6 @@ void ProcessEvaluator::evaluate(const Matrix& params, const std::vector<std::uin
     (void)::send(children_[k].fd, &go, 1, MSG_NOSIGNAL);
     pending.push_back(k);
   }
-  work(0, own_);
 
   double last_progress = now_seconds();
   std::uint64_t last_finished = ctl_->finished.load();
@@ -220,9 +242,20 @@ void ProcessEvaluator::evaluate(const Matrix& params, const std::vector<std::uin
         while (::waitpid(pid, &st, 0) < 0 && errno == EINTR) {
         }
         children_[k].pid = -1;
-        fail(who + " " + describe_exit(st) + " during an evaluation batch");
+        const std::uint64_t current = ctl_->current[k + 1].load();
+        fail(who + " " + describe_exit(st) + (current ? doing(current) : " during an evaluation batch"), current);
       }
-      if (c == 'e') fail(who + ": " + ctl_->error);
+      if (c == 'e') {
+        // The worker's own message, as the same exception reads in qdrun's process (read before
+        // shut_down() unmaps it).
+        const std::string error = ctl_->error;
+        const bool has_rows = ctl_->error_has_rows;
+        const std::size_t first = ctl_->error_first, last = ctl_->error_last;
+        broken_ = true;
+        shut_down();
+        if (has_rows) throw EvaluationFault(error, first, last);
+        throw WorkerFailure(who + ": " + error);
+      }
     }
     pending.swap(still);
     const std::uint64_t f = ctl_->finished.load();
@@ -230,10 +263,18 @@ void ProcessEvaluator::evaluate(const Matrix& params, const std::vector<std::uin
       last_finished = f;
       last_progress = now_seconds();
     } else if (timeout_ > 0 && !pending.empty() && now_seconds() - last_progress > timeout_) {
-      const std::size_t k = pending.front();
+      // The hung worker is one in the middle of an offspring, if any is.
+      std::size_t k = pending.front();
+      for (std::size_t j : pending)
+        if (ctl_->current[j + 1].load() != 0) {
+          k = j;
+          break;
+        }
+      const std::uint64_t current = ctl_->current[k + 1].load();
       fail("worker process " + std::to_string(k + 1) + " (pid " + std::to_string(children_[k].pid) +
-           ") made no progress for " + std::to_string(static_cast<long long>(timeout_)) +
-           " s ([evaluation] timeout_seconds); it is hung or far too slow");
+               ") made no progress for " + std::to_string(static_cast<long long>(timeout_)) +
+               " s ([evaluation] timeout_seconds)" + doing(current) + "; it is hung or far too slow",
+           current);
     }
   }
   unpack_records(records_, 0, n, dims_, out);

@@ -2,11 +2,15 @@
 // its own copy of the environment and of Box2D's unsynchronised global counters, which make threads
 // scale badly (docs/user-guide.md, "Parallel evaluation"). The parameter batch, the episode seeds and the
 // per-offspring result records live in one shared anonymous mapping; workers claim chunks of rows
-// from an atomic counter there (dynamic load balancing), and the parent works too.
+// from an atomic counter there (dynamic load balancing).
 //
-// Each worker has a socket pair to the parent: one byte starts a batch, one byte reports it done.
-// End of file on that socket means the worker died; no progress for timeout_seconds means it hung.
-// Either ends the batch with WorkerFailure naming the worker.
+// The parent only supervises: no rollout runs in the process that owns the run directory, so a
+// rollout that crashes, aborts, calls exit() or hangs is observed and named instead of taking the
+// run down with it (issue 20). Each worker publishes the offspring it is evaluating (rollout or
+// describe) in the mapping and has a socket pair to the parent: one byte starts a batch, one byte
+// reports it done. End of file on that socket means the worker ended; no progress for
+// timeout_seconds means it hung. Either ends the batch with an EvaluationFault naming the worker,
+// the component and the offspring (a WorkerFailure when the worker was between offspring).
 #pragma once
 
 #include "runtime/evaluator.hpp"
@@ -17,18 +21,18 @@ namespace qd::runtime {
 
 class ProcessEvaluator final : public Evaluator {
  public:
-  // workers >= 2: the parent plus workers - 1 forked processes. capacity: most rows per batch.
+  // workers >= 1 forked processes; capacity: most rows per batch.
   ProcessEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers,
-                   std::size_t capacity, double timeout_seconds);
+                   std::size_t capacity, double timeout_seconds, PluginLabels labels = {});
   ~ProcessEvaluator() override;
   ProcessEvaluator(const ProcessEvaluator&) = delete;
   ProcessEvaluator& operator=(const ProcessEvaluator&) = delete;
 
-  int workers() const noexcept override { return static_cast<int>(children_.size()) + 1; }
+  int workers() const noexcept override { return static_cast<int>(children_.size()); }
   const char* backend() const noexcept override { return "processes"; }
   void evaluate(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, Evaluations& out) override;
 
-  // For tests: the pid of worker process w (1-based; the parent is worker 0).
+  // For tests: the pid of worker process w (1-based).
   pid_t worker_pid(int w) const { return children_.at(static_cast<std::size_t>(w - 1)).pid; }
 
  private:
@@ -39,7 +43,11 @@ class ProcessEvaluator final : public Evaluator {
   };
   [[noreturn]] void child_main(int w, int fd);
   void work(int w, RowEvaluator& ev);
-  [[noreturn]] void fail(const std::string& message);
+  // Ends the workers and throws: an EvaluationFault when `current` (RowEvaluator::progress_code)
+  // names the offspring the worker was on, else a WorkerFailure.
+  [[noreturn]] void fail(const std::string& message, std::uint64_t current = 0);
+  // " in rollout() of environment 'x' (library)" for a progress code, "" for 0.
+  std::string doing(std::uint64_t current) const;
   void shut_down() noexcept;
 
   std::size_t P_, dims_, width_, capacity_;

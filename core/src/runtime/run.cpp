@@ -93,6 +93,7 @@ std::unique_ptr<Evaluator> make_run_evaluator(const Experiment& ex, const Compon
   spec.capacity = static_cast<std::size_t>(std::max(s.batch, s.initial_samples));
   spec.timeout_seconds = s.timeout_seconds;
   spec.status_file = (dir / "status").string();
+  spec.labels = {c.environment_label, c.descriptor_label};
   return make_evaluator(spec, *c.environment, *c.descriptor, c.shape);
 }
 
