@@ -138,6 +138,9 @@ thread_limit)
   # Threads that cannot be created (a container's process limit) are an error, never a hang. The
   # limit binds only an unprivileged user: run as nobody where we are root.
   [ "$(id -u)" -eq 0 ] && command -v setpriv > /dev/null || { echo "SKIPPED: needs root and setpriv"; exit 77; }
+  # A checkout under a private directory (mktemp -d is mode 700) is out of nobody's reach.
+  setpriv --reuid=65534 --regid=65534 --clear-groups test -x "$qdrun" ||
+    { echo "SKIPPED: user nobody cannot run $qdrun (a parent directory is private)"; exit 77; }
   chmod 777 "$out"
   err=$(timeout 60 setpriv --reuid=65534 --regid=65534 --clear-groups bash -c \
         "ulimit -u 3; '$qdrun' '$exp' -o '$out/a' -q --backend threads --workers 8" 2>&1 >/dev/null) && got=0 || got=$?
