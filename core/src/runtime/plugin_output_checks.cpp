@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 namespace qd::runtime {
 
@@ -13,9 +14,17 @@ std::string where(int loop, int iteration) {
   return "loop " + std::to_string(loop) + ", iteration " + std::to_string(iteration);
 }
 
+// Without an early exit the compiler vectorises this loop; Eigen's allFinite() checks one value at a
+// time and cost 3 % of a Striker ps-uniform run (200 x 1 635 parameters per batch).
+bool all_finite(const double* x, std::size_t n) {
+  std::size_t non_finite = 0;
+  for (std::size_t i = 0; i < n; ++i) non_finite += !(std::abs(x[i]) <= std::numeric_limits<double>::max());
+  return non_finite == 0;
+}
+
 // The first non-finite entry of `m` as (row, column), or false.
 bool first_non_finite(const Matrix& m, Eigen::Index& row, Eigen::Index& col) {
-  if (m.allFinite()) return false;
+  if (all_finite(m.data(), static_cast<std::size_t>(m.size()))) return false;
   for (row = 0; row < m.rows(); ++row)
     for (col = 0; col < m.cols(); ++col)
       if (!std::isfinite(m(row, col))) return true;

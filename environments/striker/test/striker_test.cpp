@@ -7,10 +7,12 @@
 #include <qd/rng.hpp>
 #include <qd/testing/conformance.hpp>
 
+#include <box2d/box2d.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -495,3 +497,27 @@ TEST(StrikerFitness, HalfPrecisionRounding) {
 }
 
 }  // namespace
+
+// ---- Box2D's step timers (environments/common/box2d_profiling_off.cpp) ----------------------
+
+// The replacement timers are what libbox2d calls from this binary, as from the plugin: a world
+// step reports zero profiling time, and episodes are unchanged (the known answers above).
+TEST(Box2dProfilingOff, TheLibraryStepsWithoutReadingTheClock) {
+  b2World world(b2Vec2(0.0f, -10.0f));
+  b2BodyDef def;
+  def.type = b2_dynamicBody;
+  b2Body* body = world.CreateBody(&def);
+  b2PolygonShape box;
+  box.SetAsBox(1.0f, 1.0f);
+  body->CreateFixture(&box, 1.0f);
+  for (int i = 0; i < 100; ++i) world.Step(1.0f / 60.0f, 8, 3);
+  EXPECT_LT(body->GetPosition().y, -1.0f);  // it fell: the world did step
+  const b2Profile& p = world.GetProfile();
+  EXPECT_EQ(p.step, 0.0f);
+  EXPECT_EQ(p.collide, 0.0f);
+  EXPECT_EQ(p.solve, 0.0f);
+  // Libbox2d's own timer would read at least 2 ms here.
+  b2Timer timer;
+  std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  EXPECT_EQ(timer.GetMilliseconds(), 0.0f);
+}
