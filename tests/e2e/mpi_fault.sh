@@ -26,7 +26,8 @@ got=$?
 set -e
 [ "$got" -ne 0 ] || { echo "mpirun exited 0 after a rank was killed"; exit 1; }
 expect_failed_run 1 1 "$out/err" "$regex" "$dir"
-mpi 2 "$qdrun" --resume "$dir" -q
+# The resumed run keeps the faulty run's settings; a 1 s silence limit would fail it on a busy machine.
+mpi 2 "$qdrun" --resume "$dir" -q --set evaluation.timeout_seconds=120
 grep -qx complete "$dir/status"
 "$qdrun" "$exp" -o "$out/full" -q --workers 1 "$@"
 same_results "$(run_dir "$out/full")" "$dir"
