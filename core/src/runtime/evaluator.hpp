@@ -208,6 +208,9 @@ void mpi_start(int* argc, char*** argv);  // MPI_Init when launched, else nothin
 bool mpi_active() noexcept;               // MPI initialised
 int mpi_rank() noexcept;
 int mpi_size() noexcept;
+// Rank 0: the worker ranks were told to stop and will finalise MPI, so rank 0 may finalise too and
+// end with its own exit code (after a plugin fault, say) instead of making mpirun end the job.
+bool mpi_workers_released() noexcept;
 void mpi_stop() noexcept;  // MPI_Finalize when initialised
 [[noreturn]] void mpi_abort(int code) noexcept;
 // Only with QD_WITH_MPI (make_evaluator checks mpi_built() first).
