@@ -185,7 +185,8 @@ struct EvaluatorSpec {
   std::string backend = "auto";  // auto | threads | processes | mpi
   int workers = 1;               // local workers (threads/processes); MPI uses one per rank
   std::size_t capacity = 0;      // largest batch (rows) the process backend must hold
-  double timeout_seconds = 0;    // a worker process/rank silent this long in a batch is hung (0 = never)
+  double timeout_seconds = 0;    // a worker process silent this long in a batch is hung (0 = never); an MPI
+                                 // rank, twice this plus 5 s (its own worker process is timed first)
   std::string status_file;       // written by the MPI backend when mpirun terminates the job
   PluginLabels labels;
 };
