@@ -3,9 +3,9 @@
 //
 // Per batch: rank 0 broadcasts the parameter rows and episode seeds (non-blocking collectives), then
 // hands out row ranges on demand (guided: they shrink towards the end of the batch), keeping two in
-// flight per worker so a worker never waits for rank 0, which evaluates one row at a time and
-// answers between rows (dynamic load balancing; only ranges and compact result records travel
-// after the broadcast). Results go into per-offspring slots, so nothing depends on which rank
+// flight per worker so a worker never waits for rank 0, which evaluates ranges of the same sizes
+// itself and answers between them (dynamic load balancing; only ranges and compact result records
+// travel after the broadcast). Results go into per-offspring slots, so nothing depends on which rank
 // evaluated what.
 //
 // Supervision: no plugin rollout or describe() runs in an MPI process. Every rank, rank 0 included,
@@ -222,10 +222,10 @@ class MpiEvaluator final : public Evaluator {
         width_(record_width(dims_)),
         timeout_(spec.timeout_seconds),
         rank_timeout_(spec.timeout_seconds > 0 ? 2 * spec.timeout_seconds + kRankGrace : 0),
-        // Forked first, before the signal handlers below and any traffic of this evaluator. Rank 0
-        // evaluates one row at a time; a worker rank at most the largest range rank 0 hands out.
+        // Forked first, before the signal handlers below and any traffic of this evaluator; it
+        // holds the largest range of a batch of `capacity` rows.
         own_(env, desc, shape, 1,
-             g_rank == 0 ? 1 : largest_chunk(std::max<std::size_t>(spec.capacity, 1), static_cast<std::size_t>(g_size)),
+             largest_chunk(std::max<std::size_t>(spec.capacity, 1), static_cast<std::size_t>(g_size)),
              spec.timeout_seconds, spec.labels, rank_label()) {
     PeerInfo me;
     me.pid = ::getpid();
@@ -351,18 +351,22 @@ class MpiEvaluator final : public Evaluator {
       }
       return count > 0 && count != MPI_UNDEFINED;
     };
-    std::vector<double> mine(width_);
+    std::vector<double> mine(largest * width_);
     Backoff backoff;
     while (rows_done < n && !fault.set) {
       if (next < n) {
-        // Rank 0 takes single rows: no messages to save, and it fills the gaps at the end.
-        const std::size_t i = next++;
+        // Rank 0 takes ranges like the workers: its worker process is woken once per range, the
+        // ranges shrink to single rows at the end of the batch, and it answers between ranges
+        // while each worker still holds one.
+        const std::size_t begin = next, count = guided_chunk(n - next, size, largest);
+        next += count;
         fault = supervised([&] {
-          own_.evaluate_rows(params.row(static_cast<Eigen::Index>(i)).data(), seeds.data() + i, 1, mine.data(), i);
+          own_.evaluate_rows(params.row(static_cast<Eigen::Index>(begin)).data(), seeds.data() + begin, count,
+                             mine.data(), begin);
         });
         if (!fault.set) {
-          unpack_records(mine.data(), i, i + 1, dims_, out);
-          ++rows_done;
+          unpack_records(mine.data(), begin, begin + count, dims_, out);
+          rows_done += count;
         }
         service();
         continue;
