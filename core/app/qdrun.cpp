@@ -409,9 +409,10 @@ int qdrun_main(int argc, char** argv) {
   } catch (const WorkerFailure& e) {
     std::fprintf(stderr, "qdrun: error: %s\n", e.what());
     std::fflush(stderr);
-    // Under MPI a hung or dead rank would never join MPI_Finalize: rank 0 takes the job down. A
-    // worker rank returns, so main() prints its captured message before it exits.
-    if (mpi_size() > 1 && mpi_rank() == 0) mpi_abort(kExitWorkerFailure);
+    // Under MPI a hung or dead rank would never join MPI_Finalize: rank 0 takes the job down,
+    // unless the worker ranks were released (a plugin fault the ranks reported). A worker rank
+    // returns, so main() prints its captured message before it exits.
+    if (mpi_size() > 1 && mpi_rank() == 0 && !mpi_workers_released()) mpi_abort(kExitWorkerFailure);
     return kExitWorkerFailure;
   } catch (const SystemError& e) {
     std::fprintf(stderr, "qdrun: system error: %s\n", e.what());
@@ -468,9 +469,9 @@ int main(int argc, char** argv) {
     return code;
   }
   const int code = qdrun_main(argc, argv);
-  if (code != kExitOk && mpi_size() > 1) {
+  if (code != kExitOk && mpi_size() > 1 && !mpi_workers_released()) {
     std::fflush(nullptr);
-    std::_Exit(code);  // see above: mpirun ends the job, worker ranks included
+    std::_Exit(code);  // see above: mpirun ends the job, the worker ranks included
   }
   mpi_stop();
   return code;

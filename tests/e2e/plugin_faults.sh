@@ -12,11 +12,15 @@
 #    inf reaches archive.csv.
 #   plugin_faults.sh QDRUN PLUGIN_DIR OUT CASE BACKEND
 # BACKEND: serial (the default: one supervised worker process), processes (2 worker processes),
-# threads (2 threads in qdrun's process), inprocess (--backend threads --workers 1). Faults that
-# end a process (segfault, abort, exit0, exit1, hang) are only observable in worker processes:
-# they are skipped (exit 77) for threads and inprocess, which are documented as unsupervised.
+# threads (2 threads in qdrun's process), inprocess (--backend threads --workers 1), mpi (mpirun
+# -np 2: each rank evaluates in a supervised worker process of its own; every run of the case,
+# the --resume included, under mpirun), mpi1 (mpirun -np 1: rank 0 evaluates every offspring,
+# so its own worker process meets the fault). Faults that end a process (segfault, abort, exit0, exit1,
+# hang) are only observable in worker processes: they are skipped (exit 77) for threads and
+# inprocess, which are documented as unsupervised.
 source "$(dirname "$0")/lib.sh"
 qdrun=$1 plugins=$2 out=$3 case=$4 backend=$5
+launch=()
 # Under the sanitizers (scripts/test.sh --sanitize) a deliberate segfault or exit() would otherwise
 # end in AddressSanitizer's report or a leak report instead of the fault itself.
 [ -z "${ASAN_OPTIONS:-}" ] || export ASAN_OPTIONS="$ASAN_OPTIONS:handle_segv=0:detect_leaks=0"
@@ -28,6 +32,8 @@ serial) backend_args=(--workers 1) ;;
 processes) backend_args=(--workers 2 --backend processes) ;;
 threads) backend_args=(--workers 2 --backend threads) ;;
 inprocess) backend_args=(--workers 1 --backend threads) ;;
+mpi) backend_args=() launch=(mpi 2); mpi_sanitizer_env ;;
+mpi1) backend_args=() launch=(mpi 1); mpi_sanitizer_env ;;
 *) echo "unknown backend $backend"; exit 2 ;;
 esac
 
@@ -35,7 +41,7 @@ env_fault=none mutator='type = "iso"
 sigma = 0.1' representation='type = "none"'
 case $case in
 segfault | abort | exit0 | exit1 | hang)
-  [ "$backend" = serial ] || [ "$backend" = processes ] || { echo "SKIPPED: $backend is unsupervised"; exit 77; }
+  if [ "$backend" = threads ] || [ "$backend" = inprocess ]; then echo "SKIPPED: $backend is unsupervised"; exit 77; fi
   env_fault=$case ;;
 throw | nan-fitness | inf-descriptor | nan-descriptor | cell-out-of-range) env_fault=$case ;;
 mutator-*) mutator="type = \"fault-mutator\"
@@ -77,7 +83,7 @@ $mutator
 timeout_seconds = 2
 TOML
 
-run() { "$qdrun" "$out/fault.toml" --plugin-path "$plugins" -q "${backend_args[@]}" "$@"; }
+run() { "${launch[@]}" "$qdrun" "$out/fault.toml" --plugin-path "$plugins" -q "${backend_args[@]}" "$@"; }
 
 # The run that never had the fault.
 QD_FAULT_DISABLE=1 run -o "$out/clean"
@@ -125,6 +131,14 @@ mutator-throw) regex="^qdrun: error: mutator 'fault-mutator' $lib threw from mut
 repr-nan-decode) regex="^qdrun: error: representation 'fault-linear' $lib decode\(\) returned nan \(row 0, column 0\)" ;;
 repr-short-encode) regex="^qdrun: error: representation 'fault-linear' $lib encode\(\) returned 9 x 2, expected 10 x 2" ;;
 esac
+# Under MPI a dead or hung worker process is named with its rank and host.
+case $case in
+segfault | abort | exit0 | exit1 | hang)
+  case $backend in
+  mpi) regex="MPI rank [0-9]+ on [^ ]+: $regex" ;;
+  mpi1) regex="MPI rank 0 on [^ ]+: $regex" ;;
+  esac ;;
+esac
 # Rollout and descriptor faults name the offspring and save it for the plugin's author.
 case $case in
 mutator-* | repr-*) ;;
@@ -139,7 +153,7 @@ mutator-* | repr-*) ;;
 esac
 expect_failed_run "$got" 3 "$out/err" "$regex" "$dir"
 grep -Eq "^failed: .*'fault-[a-z]+' $lib" "$dir/status" || { echo "status: $(cat "$dir/status")"; exit 1; }
-QD_FAULT_DISABLE=1 "$qdrun" --resume "$dir" --plugin-path "$plugins" -q
+QD_FAULT_DISABLE=1 "${launch[@]}" "$qdrun" --resume "$dir" --plugin-path "$plugins" -q
 grep -qx complete "$dir/status"
 same_results "$clean" "$dir"
 echo "plugin fault $case ($backend) ok"

@@ -264,3 +264,39 @@ TEST(Evaluator, CrashingRolloutNamesTheOffspring) {
         << e.what();
   }
 }
+
+// evaluate_rows, each MPI rank's path: blocks of rows give the whole batch's records, and a crash
+// names the offspring by its index in the batch, after the caller's prefix (the rank).
+TEST(Evaluator, ProcessRowBlocksEqualTheBatchAndNameTheOffspring) {
+  const FaultyEnvironment env(true);
+  const ScriptedDescriptor desc;
+  const PolicyShape shape(6, {8, 8}, 3);
+  Matrix params = random_params(shape, 40, 16);
+  std::vector<std::uint64_t> seeds(40, 0);
+  runtime::ThreadEvaluator serial(env, desc, shape, 1);
+  runtime::Evaluations whole, blocks;
+  serial.evaluate(params, seeds, whole);
+  runtime::ProcessEvaluator procs(env, desc, shape, 1, 16, 60, kLabels, "MPI rank 3 on node7: ");
+  const std::size_t dims = desc.grid().shape.size();
+  std::vector<double> records(16 * runtime::record_width(dims));
+  blocks.reset(40, dims);
+  for (std::size_t begin = 0; begin < 40; begin += 16) {
+    const std::size_t rows = std::min<std::size_t>(16, 40 - begin);
+    procs.evaluate_rows(params.row(static_cast<Eigen::Index>(begin)).data(), seeds.data() + begin, rows, records.data(),
+                        begin);
+    runtime::unpack_records(records.data(), begin, begin + rows, dims, blocks);
+  }
+  expect_same(whole, blocks);
+  params(29, 0) = kFaultMarker;
+  try {
+    procs.evaluate_rows(params.row(16).data(), seeds.data() + 16, 16, records.data(), 16);
+    FAIL() << "expected an EvaluationFault";
+  } catch (const runtime::EvaluationFault& e) {
+    EXPECT_EQ(e.first, 29u);
+    EXPECT_EQ(e.last, 29u);
+    EXPECT_EQ(std::string(e.what()).rfind("MPI rank 3 on node7: worker process 1 (pid ", 0), 0u) << e.what();
+    EXPECT_NE(std::string(e.what()).find("in rollout() of environment 'faulty' (test.so)"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(procs.evaluate_rows(params.data(), seeds.data(), 1, records.data(), 0), runtime::WorkerFailure);
+}

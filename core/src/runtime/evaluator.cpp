@@ -309,6 +309,9 @@ int mpi_rank() noexcept {
 int mpi_size() noexcept {
   return 1;
 }
+bool mpi_workers_released() noexcept {
+  return false;
+}
 void mpi_stop() noexcept {}
 void mpi_abort(int code) noexcept {
   std::_Exit(code);

@@ -185,7 +185,8 @@ struct EvaluatorSpec {
   std::string backend = "auto";  // auto | threads | processes | mpi
   int workers = 1;               // local workers (threads/processes); MPI uses one per rank
   std::size_t capacity = 0;      // largest batch (rows) the process backend must hold
-  double timeout_seconds = 0;    // a worker process/rank silent this long in a batch is hung (0 = never)
+  double timeout_seconds = 0;    // a worker process silent this long in a batch is hung (0 = never); an MPI
+                                 // rank, twice this plus 5 s (its own worker process is timed first)
   std::string status_file;       // written by the MPI backend when mpirun terminates the job
   PluginLabels labels;
 };
@@ -208,6 +209,9 @@ void mpi_start(int* argc, char*** argv);  // MPI_Init when launched, else nothin
 bool mpi_active() noexcept;               // MPI initialised
 int mpi_rank() noexcept;
 int mpi_size() noexcept;
+// Rank 0: the worker ranks were told to stop and will finalise MPI, so rank 0 may finalise too and
+// end with its own exit code (after a plugin fault, say) instead of making mpirun end the job.
+bool mpi_workers_released() noexcept;
 void mpi_stop() noexcept;  // MPI_Finalize when initialised
 [[noreturn]] void mpi_abort(int code) noexcept;
 // Only with QD_WITH_MPI (make_evaluator checks mpi_built() first).

@@ -3,17 +3,32 @@
 //
 // Per batch: rank 0 broadcasts the parameter rows and episode seeds (non-blocking collectives), then
 // hands out row ranges on demand (guided: they shrink towards the end of the batch), keeping two in
-// flight per worker so a worker never waits for rank 0, which evaluates one row at a time and
-// answers between rows (dynamic load balancing; only ranges and compact result records travel
-// after the broadcast). Results go
-// into per-offspring slots, so nothing depends on which rank evaluated what.
+// flight per worker so a worker never waits for rank 0, which evaluates ranges of the same sizes
+// itself and answers between them (dynamic load balancing; only ranges and compact result records
+// travel after the broadcast). Results go into per-offspring slots, so nothing depends on which rank
+// evaluated what.
 //
-// Faults: OpenMPI's mpirun reacts to a dead rank by sending SIGTERM to the others (SIGKILL 1 s
-// later). Rank 0 catches it, finds the dead worker among the pids gathered at start-up, writes the
-// run's status file ("failed ...", the checkpoint is untouched) and exits with one line. A worker
-// that makes no progress for [evaluation] timeout_seconds is reported as hung and the job aborted.
-// Waiting ranks poll with a growing sleep, so idle workers leave the cores to rank 0's training.
+// Supervision: no plugin rollout or describe() runs in an MPI process. Every rank, rank 0 included,
+// evaluates its rows in one worker process of its own (ProcessEvaluator::evaluate_rows), forked at
+// start-up; that child never calls MPI. A rollout that crashes, aborts, calls exit(), throws or
+// hangs past [evaluation] timeout_seconds is caught by the rank that ran it, which names the
+// component, its library and the offspring. A worker rank sends the fault to rank 0 (a result
+// record marked kFault, then the message under kTagFault) and answers any further range of the
+// batch with kSkipped. Rank 0 stops handing out rows, lets every worker finish and acknowledge the
+// batch, and throws the fault as the serial backend does (exit 3, status, fault-offspring.csv, the
+// checkpoint kept); its destructor then releases the workers, which leave serve() and finalise MPI
+// normally, so the job ends with rank 0's one line and code.
+//
+// Faults of a whole rank: OpenMPI's mpirun reacts to a dead rank by sending SIGTERM to the others
+// (SIGKILL 1 s later). Rank 0 catches it, finds the dead worker among the pids gathered at
+// start-up, writes the run's status file ("failed ...", the checkpoint is untouched) and exits with
+// one line. A worker rank that sends nothing for twice [evaluation] timeout_seconds plus 5 s (its
+// own supervision reports a hung rollout after timeout_seconds) is reported as hung and the job
+// aborted. Waiting ranks poll with a growing sleep, so idle workers leave the cores to rank 0's
+// training.
 #include "runtime/evaluator.hpp"
+
+#include "runtime/process_evaluator.hpp"
 
 #include <mpi.h>
 
@@ -32,11 +47,16 @@ namespace qd::runtime {
 
 namespace {
 
-constexpr int kTagWork = 1, kTagResult = 2;
+constexpr int kTagWork = 1, kTagResult = 2, kTagFault = 3;
+// A result record's row count (its second value) is the number of rows evaluated (>= 1), 0 for the
+// acknowledgement at the end of a batch, or one of these.
+constexpr double kFault = -1;    // the range failed: has_rows, first, last follow; the message under kTagFault
+constexpr double kSkipped = -2;  // not evaluated: this rank reported a fault earlier in the batch
+constexpr std::size_t kFaultBytes = 4096;
 constexpr int kExitWorkerFailure = 3;
 constexpr std::size_t kHostBytes = 64;
 
-bool g_initialised = false;
+bool g_initialised = false, g_released = false;
 int g_rank = 0, g_size = 1;
 
 struct PeerInfo {
@@ -158,14 +178,55 @@ int as_count(std::size_t n) {
   return static_cast<int>(n);
 }
 
+// "MPI rank 1 on node7: ", how messages name this rank's worker process.
+std::string rank_label() {
+  char host[kHostBytes] = {0};
+  ::gethostname(host, kHostBytes - 1);
+  return "MPI rank " + std::to_string(g_rank) + " on " + host + ": ";
+}
+
+// A fault of a rank's worker process, as ProcessEvaluator reported it: an EvaluationFault for
+// rows [first, last] of the batch, or a WorkerFailure (the worker failed between offspring).
+struct RankFault {
+  bool set = false, has_rows = false;
+  std::size_t first = 0, last = 0;
+  std::string message;
+
+  [[noreturn]] void raise() const {
+    if (has_rows) throw EvaluationFault(message, first, last);
+    throw WorkerFailure(message);
+  }
+};
+
+template <class F>
+RankFault supervised(F&& evaluate) {
+  try {
+    evaluate();
+  } catch (const EvaluationFault& e) {
+    return {true, true, e.first, e.last, e.what()};
+  } catch (const WorkerFailure& e) {
+    return {true, false, 0, 0, e.what()};
+  }
+  return {};
+}
+
+// Rank 0 waits this long beyond twice timeout_seconds before it calls a silent worker rank hung:
+// the rank's own supervision reports a hung rollout after timeout_seconds.
+constexpr double kRankGrace = 5;
+
 class MpiEvaluator final : public Evaluator {
  public:
   MpiEvaluator(const EvaluatorSpec& spec, const Environment& env, const Descriptor& desc, const PolicyShape& shape)
-      : own_(env, desc, shape, spec.labels),
-        P_(shape.param_count()),
+      : P_(shape.param_count()),
         dims_(desc.grid().shape.size()),
         width_(record_width(dims_)),
-        timeout_(spec.timeout_seconds) {
+        timeout_(spec.timeout_seconds),
+        rank_timeout_(spec.timeout_seconds > 0 ? 2 * spec.timeout_seconds + kRankGrace : 0),
+        // Forked first, before the signal handlers below and any traffic of this evaluator; it
+        // holds the largest range of a batch of `capacity` rows.
+        own_(env, desc, shape, 1,
+             largest_chunk(std::max<std::size_t>(spec.capacity, 1), static_cast<std::size_t>(g_size)),
+             spec.timeout_seconds, spec.labels, rank_label()) {
     PeerInfo me;
     me.pid = ::getpid();
     ::gethostname(me.host, kHostBytes - 1);
@@ -195,9 +256,11 @@ class MpiEvaluator final : public Evaluator {
   ~MpiEvaluator() override {
     if (g_rank == 0 && !stopped_) {
       // Tell the workers to leave serve(); bounded, since a hung worker never joins the broadcast.
+      // Once they have it, every rank may finalise MPI normally (mpi_workers_released).
       try {
         std::uint64_t hdr[2] = {0, 0};
         broadcast(hdr, 2, MPI_UINT64_T, 5.0);
+        g_released = true;
       } catch (...) {
       }
     }
@@ -239,6 +302,7 @@ class MpiEvaluator final : public Evaluator {
     std::vector<int> in_flight(workers, 0);
     std::vector<double> last_heard(workers, started);
     std::size_t next = 0, rows_done = 0;
+    RankFault fault;  // the first fault of the batch; no rows are handed out after it
     auto post = [&](std::size_t w) {
       check(MPI_Irecv(inbox[w].data(), as_count(inbox[w].size()), MPI_DOUBLE, static_cast<int>(w + 1), kTagResult,
                       MPI_COMM_WORLD, &recv[w]),
@@ -250,6 +314,24 @@ class MpiEvaluator final : public Evaluator {
       check(MPI_Send(range, 2, MPI_LONG_LONG, static_cast<int>(w + 1), kTagWork, MPI_COMM_WORLD), "MPI send");
       next += count;
       ++in_flight[w];
+    };
+    // A message of worker w has arrived: results, a fault or a skipped range (then the next receive
+    // is posted), or the acknowledgement of the batch's end (false).
+    auto receive = [&](std::size_t w) {
+      const double* msg = inbox[w].data();
+      last_heard[w] = now_seconds();
+      if (msg[1] == 0) return false;
+      --in_flight[w];
+      if (msg[1] == kFault) {
+        take_fault(w, msg, fault);
+      } else if (msg[1] > 0) {
+        const auto begin = static_cast<std::size_t>(msg[0]);
+        const std::size_t end = begin + static_cast<std::size_t>(msg[1]);
+        unpack_records(msg + 2, begin, end, dims_, out);
+        rows_done += end - begin;
+      }
+      post(w);
+      return true;
     };
     for (std::size_t w = 0; w < workers; ++w) {
       post(w);
@@ -264,26 +346,28 @@ class MpiEvaluator final : public Evaluator {
             "MPI test");
       for (int j = 0; j < count; ++j) {
         const auto w = static_cast<std::size_t>(ready[j]);
-        const auto begin = static_cast<std::size_t>(inbox[w][0]);
-        const std::size_t end = begin + static_cast<std::size_t>(inbox[w][1]);
-        unpack_records(inbox[w].data() + 2, begin, end, dims_, out);
-        rows_done += end - begin;
-        --in_flight[w];
-        last_heard[w] = now_seconds();
-        post(w);
-        if (next < n) hand_out(w);
+        receive(w);
+        if (!fault.set && next < n) hand_out(w);
       }
       return count > 0 && count != MPI_UNDEFINED;
     };
-    std::vector<double> mine(width_);
+    std::vector<double> mine(largest * width_);
     Backoff backoff;
-    while (rows_done < n) {
+    while (rows_done < n && !fault.set) {
       if (next < n) {
-        // Rank 0 takes single rows: no messages to save, and it fills the gaps at the end.
-        const std::size_t i = next++;
-        own_.run(params.row(static_cast<Eigen::Index>(i)).data(), seeds.data() + i, 1, mine.data(), i);
-        unpack_records(mine.data(), i, i + 1, dims_, out);
-        ++rows_done;
+        // Rank 0 takes ranges like the workers: its worker process is woken once per range, the
+        // ranges shrink to single rows at the end of the batch, and it answers between ranges
+        // while each worker still holds one.
+        const std::size_t begin = next, count = guided_chunk(n - next, size, largest);
+        next += count;
+        fault = supervised([&] {
+          own_.evaluate_rows(params.row(static_cast<Eigen::Index>(begin)).data(), seeds.data() + begin, count,
+                             mine.data(), begin);
+        });
+        if (!fault.set) {
+          unpack_records(mine.data(), begin, begin + count, dims_, out);
+          rows_done += count;
+        }
         service();
         continue;
       }
@@ -293,10 +377,11 @@ class MpiEvaluator final : public Evaluator {
       }
       const double now = now_seconds();
       for (std::size_t w = 0; w < workers; ++w)
-        if (in_flight[w] > 0 && timeout_ > 0 && now - last_heard[w] > timeout_) hung(static_cast<int>(w + 1));
+        if (in_flight[w] > 0 && rank_timeout_ > 0 && now - last_heard[w] > rank_timeout_) hung(static_cast<int>(w + 1));
       backoff.pause();
     }
-    // End of batch: every worker acknowledges, which also consumes the receive still posted for it.
+    // End of batch: every worker finishes the ranges it holds (after a fault too, so no message is
+    // left in flight) and acknowledges, which also consumes the receive still posted for it.
     for (std::size_t w = 0; w < workers; ++w) {
       const long long end[2] = {0, 0};
       check(MPI_Send(end, 2, MPI_LONG_LONG, static_cast<int>(w + 1), kTagWork, MPI_COMM_WORLD), "MPI send");
@@ -307,13 +392,19 @@ class MpiEvaluator final : public Evaluator {
       for (;;) {
         int flag = 0;
         check(MPI_Test(&recv[w], &flag, MPI_STATUS_IGNORE), "MPI test");
-        if (flag) break;
-        if (timeout_ > 0 && now_seconds() - t0 > timeout_) hung(static_cast<int>(w + 1));
+        if (flag) {
+          if (!receive(w)) break;
+          backoff.reset();
+          continue;
+        }
+        if (rank_timeout_ > 0 && now_seconds() - std::max(t0, last_heard[w]) > rank_timeout_)
+          hung(static_cast<int>(w + 1));
         backoff.pause();
       }
     }
     // Every worker acknowledged, so every broadcast has arrived: this returns at once.
     check(MPI_Waitall(3, bcast, MPI_STATUSES_IGNORE), "MPI broadcast");
+    if (fault.set) fault.raise();
   }
 
   void serve() override {
@@ -333,8 +424,9 @@ class MpiEvaluator final : public Evaluator {
       // The data follows the header at once: poll closely, each segment needs this rank in MPI.
       broadcast(params.data(), n * P_, MPI_DOUBLE, 0, true);
       broadcast(seeds.data(), n, MPI_UINT64_T, 0, true);
-      outbox.resize(2 + largest * width_);
+      outbox.resize(std::max<std::size_t>(2 + largest * width_, 5));
       Backoff backoff;
+      bool failed = false;  // this rank reported a fault in this batch
       for (;;) {
         long long range[2] = {0, 0};
         MPI_Request req = MPI_REQUEST_NULL;
@@ -353,7 +445,19 @@ class MpiEvaluator final : public Evaluator {
           break;
         }
         QD_CHECK(begin + count <= n && count <= largest, "a row range inside the batch");
-        own_.run(params.data() + begin * P_, seeds.data() + begin, count, outbox.data() + 2, begin);
+        if (failed) {
+          outbox[1] = kSkipped;
+          check(MPI_Send(outbox.data(), 2, MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD), "MPI send");
+          continue;
+        }
+        const RankFault fault = supervised([&] {
+          own_.evaluate_rows(params.data() + begin * P_, seeds.data() + begin, count, outbox.data() + 2, begin);
+        });
+        if (fault.set) {
+          report(outbox.data(), fault);
+          failed = true;
+          continue;
+        }
         check(MPI_Send(outbox.data(), as_count(2 + count * width_), MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD),
               "MPI send");
       }
@@ -380,17 +484,48 @@ class MpiEvaluator final : public Evaluator {
     }
   }
 
+  // Worker rank: sends rank 0 the fault of the range outbox[0] begins: the record, then the message.
+  static void report(double* outbox, const RankFault& f) {
+    outbox[1] = kFault;
+    outbox[2] = f.has_rows ? 1 : 0;
+    outbox[3] = static_cast<double>(f.first);
+    outbox[4] = static_cast<double>(f.last);
+    check(MPI_Send(outbox, 5, MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD), "MPI send");
+    const std::size_t len = std::min(f.message.size(), kFaultBytes);
+    check(MPI_Send(f.message.data(), as_count(len), MPI_CHAR, 0, kTagFault, MPI_COMM_WORLD), "MPI send");
+  }
+
+  // Rank 0: the message of the fault worker w announced in `record` (it follows at once); the
+  // first fault of a batch is the one reported.
+  static void take_fault(std::size_t w, const double* record, RankFault& fault) {
+    char text[kFaultBytes];
+    MPI_Status st;
+    check(MPI_Recv(text, static_cast<int>(kFaultBytes), MPI_CHAR, static_cast<int>(w + 1), kTagFault, MPI_COMM_WORLD,
+                   &st),
+          "MPI receive");
+    int len = 0;
+    check(MPI_Get_count(&st, MPI_CHAR, &len), "MPI receive");
+    if (fault.set) return;
+    fault.set = true;
+    fault.has_rows = record[2] != 0;
+    fault.first = static_cast<std::size_t>(record[3]);
+    fault.last = static_cast<std::size_t>(record[4]);
+    fault.message.assign(text, static_cast<std::size_t>(std::max(len, 0)));
+  }
+
   [[noreturn]] void hung(int rank) {
     stopped_ = true;
     const auto& p = g_peers.at(static_cast<std::size_t>(rank));
     throw WorkerFailure("MPI worker rank " + std::to_string(rank) + " (pid " + std::to_string(p.pid) + " on " + p.host +
                         ") made no progress for " + std::to_string(static_cast<long long>(timeout_)) +
-                        " s ([evaluation] timeout_seconds); it is hung or far too slow");
+                        " s ([evaluation] timeout_seconds) and reported no fault in " +
+                        std::to_string(static_cast<long long>(rank_timeout_ - timeout_)) +
+                        " s more; it is hung or far too slow");
   }
 
-  RowEvaluator own_;
   std::size_t P_, dims_, width_;
-  double timeout_;
+  double timeout_, rank_timeout_;
+  ProcessEvaluator own_;  // this rank's supervised worker process
   bool stopped_ = false;
   std::uint64_t hdr_[2] = {0, 0};  // broadcast buffer, alive while the batch runs
   struct sigaction previous_ {};
@@ -421,6 +556,9 @@ void mpi_start(int* argc, char*** argv) {
 
 bool mpi_active() noexcept {
   return g_initialised;
+}
+bool mpi_workers_released() noexcept {
+  return g_released;
 }
 int mpi_rank() noexcept {
   return g_rank;

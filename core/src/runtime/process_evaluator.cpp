@@ -40,12 +40,20 @@ std::string describe_exit(int status) {
   return "ended";
 }
 
+// In a worker process: exit() called by plugin code ends the process with its code at once. The
+// handlers it would otherwise run (registered by qdrun, the C++ runtime and, under mpirun, MPI)
+// belong to the parent, and MPI's would act on the parent's connections.
+void exit_at_once(int code, void*) {
+  ::_exit(code);
+}
+
 }  // namespace
 
 struct ProcessEvaluator::Control {
   std::atomic<std::uint64_t> next{0};      // first row not yet claimed
   std::atomic<std::uint64_t> finished{0};  // rows done in this batch (progress, for the timeout)
   std::uint64_t rows = 0, workers = 1, largest = 1;
+  std::uint64_t first = 0;  // offspring index of row 0 (evaluate_rows)
   std::atomic<int> error_owner{-1};
   std::uint64_t error_first = 0, error_last = 0;  // rows of an EvaluationFault
   bool error_has_rows = false;
@@ -56,13 +64,15 @@ struct ProcessEvaluator::Control {
 static_assert(std::atomic<std::uint64_t>::is_always_lock_free, "shared counters must be lock-free");
 
 ProcessEvaluator::ProcessEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape,
-                                   int workers, std::size_t capacity, double timeout_seconds, PluginLabels labels)
+                                   int workers, std::size_t capacity, double timeout_seconds, PluginLabels labels,
+                                   std::string where)
     : P_(shape.param_count()),
       dims_(desc.grid().shape.size()),
       width_(record_width(dims_)),
       capacity_(std::max<std::size_t>(capacity, 1)),
       timeout_(timeout_seconds),
-      own_(env, desc, shape, std::move(labels)) {
+      own_(env, desc, shape, std::move(labels)),
+      where_(std::move(where)) {
   if (workers > static_cast<int>(kMaxWorkers))
     throw InputError("at most " + std::to_string(kMaxWorkers) + " worker processes");
   const std::size_t ctl_bytes = round_up(sizeof(Control));
@@ -133,6 +143,10 @@ void ProcessEvaluator::shut_down() noexcept {
 }
 
 void ProcessEvaluator::child_main(int w, int fd) {
+  ::on_exit(exit_at_once, nullptr);  // registered last, so it runs first
+  // A crash in plugin code takes the signal's default action: the parent names it in one line.
+  // Handlers the parent installed for itself (MPI's backtrace printer) would bury that line.
+  for (const int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT}) ::signal(sig, SIG_DFL);
   try {
     RowEvaluator& ev = own_;  // this process's own copy
     for (;;) {
@@ -171,7 +185,7 @@ void ProcessEvaluator::work(int w, RowEvaluator& ev) {
       if (begin >= rows) return;
       count = guided_chunk(rows - begin, ctl_->workers, ctl_->largest);
     } while (!ctl_->next.compare_exchange_weak(begin, begin + count));
-    ev.run(params_ + begin * P_, seeds_ + begin, count, records_ + begin * width_, begin,
+    ev.run(params_ + begin * P_, seeds_ + begin, count, records_ + begin * width_, ctl_->first + begin,
            &ctl_->current[static_cast<std::size_t>(w)]);
     ctl_->finished.fetch_add(count);
   }
@@ -203,7 +217,26 @@ void ProcessEvaluator::evaluate(const Matrix& params, const std::vector<std::uin
   if (n == 0) return;
   std::copy(params.data(), params.data() + n * P_, params_);
   std::copy(seeds.begin(), seeds.end(), seeds_);
+  run_batch(n, 0);
+  unpack_records(records_, 0, n, dims_, out);
+}
+
+void ProcessEvaluator::evaluate_rows(const double* params, const std::uint64_t* seeds, std::size_t rows,
+                                     double* records, std::size_t first_row) {
+  if (broken_) throw WorkerFailure(where_ + "the worker processes were shut down after an earlier failure");
+  if (rows > capacity_)
+    throw Error("block of " + std::to_string(rows) + " rows exceeds the process backend's capacity of " +
+                std::to_string(capacity_));
+  if (rows == 0) return;
+  std::copy(params, params + rows * P_, params_);
+  std::copy(seeds, seeds + rows, seeds_);
+  run_batch(rows, first_row);
+  std::copy(records_, records_ + rows * width_, records);
+}
+
+void ProcessEvaluator::run_batch(std::size_t n, std::size_t first_row) {
   ctl_->rows = n;
+  ctl_->first = first_row;
   ctl_->workers = static_cast<std::size_t>(workers());
   ctl_->largest = largest_chunk(n, ctl_->workers);
   ctl_->finished.store(0);
@@ -224,7 +257,7 @@ void ProcessEvaluator::evaluate(const Matrix& params, const std::vector<std::uin
     fds.clear();
     for (std::size_t k : pending) fds.push_back({children_[k].fd, POLLIN, 0});
     const int r = ::poll(fds.data(), fds.size(), 200);
-    if (r < 0 && errno != EINTR) fail(std::string("waiting for worker processes: ") + std::strerror(errno));
+    if (r < 0 && errno != EINTR) fail(where_ + "waiting for worker processes: " + std::strerror(errno));
     std::vector<std::size_t> still;
     for (std::size_t j = 0; j < pending.size(); ++j) {
       const std::size_t k = pending[j];
@@ -235,7 +268,7 @@ void ProcessEvaluator::evaluate(const Matrix& params, const std::vector<std::uin
       char c = 0;
       const ssize_t got = ::recv(children_[k].fd, &c, 1, 0);
       const std::string who =
-          "worker process " + std::to_string(k + 1) + " (pid " + std::to_string(children_[k].pid) + ")";
+          where_ + "worker process " + std::to_string(k + 1) + " (pid " + std::to_string(children_[k].pid) + ")";
       if (got <= 0) {
         int st = 0;
         const pid_t pid = children_[k].pid;
@@ -271,13 +304,12 @@ void ProcessEvaluator::evaluate(const Matrix& params, const std::vector<std::uin
           break;
         }
       const std::uint64_t current = ctl_->current[k + 1].load();
-      fail("worker process " + std::to_string(k + 1) + " (pid " + std::to_string(children_[k].pid) +
+      fail(where_ + "worker process " + std::to_string(k + 1) + " (pid " + std::to_string(children_[k].pid) +
                ") made no progress for " + std::to_string(static_cast<long long>(timeout_)) +
                " s ([evaluation] timeout_seconds)" + doing(current) + "; it is hung or far too slow",
            current);
     }
   }
-  unpack_records(records_, 0, n, dims_, out);
 }
 
 }  // namespace qd::runtime

@@ -11,6 +11,11 @@
 // reports it done. End of file on that socket means the worker ended; no progress for
 // timeout_seconds means it hung. Either ends the batch with an EvaluationFault naming the worker,
 // the component and the offspring (a WorkerFailure when the worker was between offspring).
+//
+// The MPI backend gives every rank one such worker process (evaluate_rows), so no rollout runs in
+// an MPI process either. The child never calls MPI; an exit() in plugin code ends it without
+// running the parent's exit handlers (which include MPI's and the run's), and a crash takes the
+// signal's default action, not a handler the parent installed (MPI prints backtraces).
 #pragma once
 
 #include "runtime/evaluator.hpp"
@@ -21,9 +26,10 @@ namespace qd::runtime {
 
 class ProcessEvaluator final : public Evaluator {
  public:
-  // workers >= 1 forked processes; capacity: most rows per batch.
+  // workers >= 1 forked processes; capacity: most rows per batch. `where` prefixes the messages
+  // that name a worker process (under MPI: "MPI rank 1 on node7: ").
   ProcessEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers,
-                   std::size_t capacity, double timeout_seconds, PluginLabels labels = {});
+                   std::size_t capacity, double timeout_seconds, PluginLabels labels = {}, std::string where = "");
   ~ProcessEvaluator() override;
   ProcessEvaluator(const ProcessEvaluator&) = delete;
   ProcessEvaluator& operator=(const ProcessEvaluator&) = delete;
@@ -31,6 +37,11 @@ class ProcessEvaluator final : public Evaluator {
   int workers() const noexcept override { return static_cast<int>(children_.size()); }
   const char* backend() const noexcept override { return "processes"; }
   void evaluate(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, Evaluations& out) override;
+  // Rows [0, rows) of the row-major block `params` (rows x P) with their seeds -> rows packed records
+  // (record_width); they are offspring first_row, first_row + 1, ... of the batch, which is how a
+  // fault names them. Same faults as evaluate().
+  void evaluate_rows(const double* params, const std::uint64_t* seeds, std::size_t rows, double* records,
+                     std::size_t first_row);
 
   // For tests: the pid of worker process w (1-based).
   pid_t worker_pid(int w) const { return children_.at(static_cast<std::size_t>(w - 1)).pid; }
@@ -43,6 +54,8 @@ class ProcessEvaluator final : public Evaluator {
   };
   [[noreturn]] void child_main(int w, int fd);
   void work(int w, RowEvaluator& ev);
+  // Runs the `rows` rows already in shared memory through the workers; records stay there.
+  void run_batch(std::size_t rows, std::size_t first_row);
   // Ends the workers and throws: an EvaluationFault when `current` (RowEvaluator::progress_code)
   // names the offspring the worker was on, else a WorkerFailure.
   [[noreturn]] void fail(const std::string& message, std::uint64_t current = 0);
@@ -53,6 +66,7 @@ class ProcessEvaluator final : public Evaluator {
   std::size_t P_, dims_, width_, capacity_;
   double timeout_;
   RowEvaluator own_;
+  std::string where_;
   void* map_ = nullptr;
   std::size_t map_bytes_ = 0;
   Control* ctl_ = nullptr;
