@@ -139,7 +139,7 @@ int main(int argc, char** argv) {
       bare.traces.resize(n);
       bare.seeds.assign(n, 0);
       rng.fill_uniform(bare.params.data(), static_cast<std::size_t>(bare.params.size()), -1.0, 1.0);
-      RolloutBatch b{&shape, &bare.params, bare.seeds.data(), 0, n};
+      RolloutBatch b{&shape, bare.params.data(), bare.seeds.data(), 0, n};
       run.components().environment->rollout(b, bare.traces.data());
       for (std::size_t i = 0; i < n; ++i) bare.steps += static_cast<std::uint64_t>(bare.traces[i].steps);
       bare.evaluations += n;

@@ -38,7 +38,7 @@ void ArmEnvironment::rollout(const RolloutBatch& batch, Trace* traces) const {
     Trace& t = traces[i];
     t.main.reset(2);
     t.aux.reset(joints_);
-    policy.load(batch.params->row(static_cast<Eigen::Index>(i)).data());
+    policy.load(batch.row(i));
     std::fill(angles.begin(), angles.end(), 0.0);
     double x, y, energy = 0.0;
     end_effector(angles.data(), x, y);

@@ -602,7 +602,7 @@ void BipedalEnvironment::rollout(const RolloutBatch& batch, Trace* traces) const
                                 std::to_string(observation_size(options_.task)) + " -> 4)");
   Policy policy(shape);
   for (std::size_t i = batch.begin; i < batch.end; ++i) {
-    policy.load(batch.params->row(static_cast<Eigen::Index>(i)).data());
+    policy.load(batch.row(i));
     run_episode(options_, policy, traces[i]);
   }
 }

@@ -52,11 +52,8 @@ EnvironmentInfo StrikerEnvironment::info() const {
 
 void StrikerEnvironment::rollout(const RolloutBatch& batch, Trace* traces) const {
   QD_CHECK(batch.shape && batch.params, "striker: rollout batch without policy shape or parameters");
-  QD_CHECK(static_cast<std::size_t>(batch.params->cols()) == batch.shape->param_count(),
-           "striker: parameter rows do not match the policy shape");
   Policy policy(*batch.shape);  // one per call: Policy is not thread-safe
-  for (std::size_t i = batch.begin; i < batch.end; ++i)
-    run_policy_episode(options_, policy, batch.params->row(static_cast<Eigen::Index>(i)).data(), traces[i]);
+  for (std::size_t i = batch.begin; i < batch.end; ++i) run_policy_episode(options_, policy, batch.row(i), traces[i]);
 }
 
 bool StrikerEnvironment::draw_svg(const Trace& trace, std::ostream& out) const {

@@ -69,7 +69,7 @@ class FaultArm final : public qd::Environment {
     for (std::size_t i = batch.begin; i < batch.end; ++i) {
       qd::Trace& t = traces[i];
       t.main.reset(2);
-      policy.load(batch.params->row(static_cast<Eigen::Index>(i)).data());
+      policy.load(batch.row(i));
       double angles[kJoints] = {0, 0, 0}, x = 1, y = 0, energy = 0;
       for (int step = 0; step < steps_; ++step) {
         for (int j = 0; j < kJoints; ++j) obs[static_cast<std::size_t>(j)] = static_cast<float>(angles[j]);

@@ -32,7 +32,7 @@ class ScriptedEnvironment final : public Environment {
     for (std::size_t i = batch.begin; i < batch.end; ++i) {
       Trace& t = traces[i];
       t.main.reset(1);
-      policy.load(batch.params->row(static_cast<Eigen::Index>(i)).data());
+      policy.load(batch.row(i));
       for (int step = 0; step < 50; ++step) {
         obs[0] = static_cast<float>(step) / 10.0f;
         const double a = policy.act(obs.data())[0];
@@ -161,7 +161,7 @@ class FaultyEnvironment final : public Environment {
   EnvironmentInfo info() const override { return inner_.info(); }
   void rollout(const RolloutBatch& batch, Trace* traces) const override {
     for (std::size_t i = batch.begin; i < batch.end; ++i)
-      if ((*batch.params)(static_cast<Eigen::Index>(i), 0) == kFaultMarker) {
+      if (batch.row(i)[0] == kFaultMarker) {
         if (crash_) ::raise(SIGSEGV);
         throw std::runtime_error("deliberate fault");
       }

@@ -32,7 +32,7 @@ class ScriptedEnvironment final : public Environment {
   EnvironmentInfo info() const override { return {1, 1, 1, ""}; }
   void rollout(const RolloutBatch& b, Trace* traces) const override {
     for (std::size_t i = b.begin; i < b.end; ++i) {
-      const double* theta = b.params->row(static_cast<Eigen::Index>(i)).data();
+      const double* theta = b.row(i);
       Trace& t = traces[i];
       t.main.reset(3);
       t.main.push(theta[0], theta[1], theta[3]);

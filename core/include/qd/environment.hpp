@@ -37,12 +37,23 @@ struct EnvironmentInfo {
 };
 
 // A batch of rollouts: rows [begin, end) of `params`, each with its own episode seed.
+//  * `params` is row-major with shape->param_count() doubles per row: row i, the policy of
+//    traces[i], starts at params + i * shape->param_count() (row(i)). A plain pointer, not a
+//    Matrix, so worker processes hand over the rows where they already are (shared memory) without
+//    copying them.
+//  * Only rows (and seeds) i in [begin, end) may be read; the array may belong to a larger batch.
+//  * The memory is read-only and valid only for the duration of the rollout() call: copy what must
+//    outlive it.
+//  * traces[i] for i in [begin, end) arrive cleared (see the contract above).
 struct RolloutBatch {
   const PolicyShape* shape = nullptr;
-  const Matrix* params = nullptr;                // N × P
+  const double* params = nullptr;                // N × P, row-major (P = shape->param_count())
   const std::uint64_t* episode_seeds = nullptr;  // N seeds (deterministic environments ignore them)
   std::size_t begin = 0;
   std::size_t end = 0;
+
+  // The parameters of row i (P doubles).
+  const double* row(std::size_t i) const noexcept { return params + i * shape->param_count(); }
 };
 
 class QD_EXPORT Environment : public Component {
@@ -51,8 +62,9 @@ class QD_EXPORT Environment : public Component {
 
   virtual EnvironmentInfo info() const = 0;
 
-  // Fills traces[i] for every i in [batch.begin, batch.end): `traces` is indexed like the rows of
-  // batch.params (it points at the whole batch's array, not at traces[begin]). Thread-safe.
+  // Fills traces[i] for every i in [batch.begin, batch.end) from batch.row(i): `traces` is indexed
+  // like the rows of batch.params (it points at the whole batch's array, not at traces[begin]).
+  // Thread-safe.
   virtual void rollout(const RolloutBatch& batch, Trace* traces) const = 0;
 
   // Draws the scene and one rollout's trace as a standalone SVG document. Returns false when the

@@ -16,7 +16,8 @@
 //             qd::component<MyMutator>(qd::Kind::kMutator, "my-mutator", "One-line summary.", kMyParams))
 //
 // Any change under core/include/qd/ changes the build fingerprint (it hashes the headers); bump
-// kPluginAbiVersion too when the layout of PluginInfo or ComponentInfo changes.
+// kPluginAbiVersion too when the layout of PluginInfo or ComponentInfo changes, or when a component
+// interface changes so that an old plugin's source no longer fits, so the refusal names the cause.
 #pragma once
 
 #include <qd/component.hpp>
@@ -38,7 +39,8 @@
 
 namespace qd {
 
-inline constexpr std::uint32_t kPluginAbiVersion = 3;
+// 4: RolloutBatch::params is a row-major `const double*` (was `const Matrix*`).
+inline constexpr std::uint32_t kPluginAbiVersion = 4;
 
 enum class Kind : std::uint32_t { kEnvironment = 1, kDescriptor = 2, kRepresentation = 3, kMutator = 4 };
 QD_EXPORT const char* to_string(Kind kind) noexcept;

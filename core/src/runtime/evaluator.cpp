@@ -179,19 +179,16 @@ RowEvaluator::RowEvaluator(const Environment& env, const Descriptor& desc, const
 
 void RowEvaluator::run(const double* params, const std::uint64_t* seeds, std::size_t rows, double* records,
                        std::size_t first_row, std::atomic<std::uint64_t>* current) {
-  const auto P = static_cast<Eigen::Index>(shape_.param_count());
-  // Rollouts take a Matrix; copying a chunk's rows costs far less than its episodes.
-  block_.resize(static_cast<Eigen::Index>(rows), P);
-  std::copy(params, params + rows * static_cast<std::size_t>(P), block_.data());
   if (traces_.size() < rows) traces_.resize(rows);
   for (std::size_t i = 0; i < rows; ++i) traces_[i].clear();
+  // The environment reads the rows where they are (shared memory for worker processes): no copy.
   if (!current) {
-    guarded_rollout(env_, labels_.environment, RolloutBatch{&shape_, &block_, seeds, 0, rows}, traces_.data(),
+    guarded_rollout(env_, labels_.environment, RolloutBatch{&shape_, params, seeds, 0, rows}, traces_.data(),
                     first_row);
   } else {
     for (std::size_t i = 0; i < rows; ++i) {
       current->store(progress_code(first_row + i, false), std::memory_order_relaxed);
-      guarded_rollout(env_, labels_.environment, RolloutBatch{&shape_, &block_, seeds, i, i + 1}, traces_.data(),
+      guarded_rollout(env_, labels_.environment, RolloutBatch{&shape_, params, seeds, i, i + 1}, traces_.data(),
                       first_row);
     }
   }
@@ -228,7 +225,7 @@ void ThreadEvaluator::evaluate_rows(const Matrix& params, const std::uint64_t* s
                                     std::size_t end, Evaluations& out) {
   RolloutBatch b;
   b.shape = &shape_;
-  b.params = &params;
+  b.params = params.data();
   b.episode_seeds = seeds;
   b.begin = begin;
   b.end = end;

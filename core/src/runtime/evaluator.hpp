@@ -110,7 +110,6 @@ class RowEvaluator {
   PolicyShape shape_;
   PluginLabels labels_;
   std::size_t dims_;
-  Matrix block_;
   std::vector<Trace> traces_;
 };
 

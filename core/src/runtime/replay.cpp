@@ -17,10 +17,10 @@ Trace replay_elite(const Run& run, std::int64_t cell, const fs::path& svg) {
   const StoredElites elites = read_archive_solutions(csv, c.shape.param_count());
   const auto it = std::find(elites.cells.begin(), elites.cells.end(), cell);
   if (it == elites.cells.end()) throw InputError(csv.string() + ": no elite in cell " + std::to_string(cell));
-  const Matrix theta = elites.theta.row(it - elites.cells.begin());
+  const double* theta = elites.theta.row(it - elites.cells.begin()).data();
   std::vector<Trace> traces(1);
   const std::uint64_t seed = 0;  // the paper's environments do not use episode seeds
-  c.environment->rollout(RolloutBatch{&c.shape, &theta, &seed, 0, 1}, traces.data());
+  c.environment->rollout(RolloutBatch{&c.shape, theta, &seed, 0, 1}, traces.data());
   std::ofstream out(svg);
   if (!out || !c.environment->draw_svg(traces[0], out))
     throw InputError("cannot draw to " + svg.string() + " (environment '" + run.experiment().environment.type + "')");
@@ -39,7 +39,7 @@ ReplayAllResult replay_all(const Run& run, int workers, const fs::path& csv) {
   std::vector<double> values(n * dims);
   WorkerPool pool(std::max(1, workers));
   pool.run(n, [&](std::size_t i) {
-    c.environment->rollout(RolloutBatch{&c.shape, &elites.theta, seeds.data(), i, i + 1}, traces.data());
+    c.environment->rollout(RolloutBatch{&c.shape, elites.theta.data(), seeds.data(), i, i + 1}, traces.data());
     if (traces[i].status == EvalStatus::kOk)
       c.descriptor->describe(&traces[i], 1, &landed[i], values.data() + i * dims);
   });

@@ -51,7 +51,7 @@ class CartBall final : public qd::Environment {
   void rollout(const qd::RolloutBatch& batch, qd::Trace* traces) const override {
     qd::Policy policy(*batch.shape);  // one per call: a Policy is not thread-safe
     for (std::size_t i = batch.begin; i < batch.end; ++i) {
-      policy.load(batch.params->row(static_cast<Eigen::Index>(i)).data());
+      policy.load(batch.row(i));
       episode(policy, traces[i]);
     }
   }
@@ -165,6 +165,7 @@ class Landing final : public qd::Descriptor {
 
 QD_PLUGIN("cart_ball", "0.1.0",
           qd::component<CartBall>(qd::Kind::kEnvironment, "cart-ball",
-                                  "A cart bats a falling ball (Box2D); the docs' out-of-tree example.", kCartBallParams),
+                                  "A cart bats a falling ball (Box2D); the docs' out-of-tree example.",
+                                  kCartBallParams),
           qd::component<Landing>(qd::Kind::kDescriptor, "cart-ball-landing",
                                  "Final rolling direction x highest point x final position of the ball."))

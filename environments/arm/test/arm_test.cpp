@@ -27,7 +27,7 @@ TEST(Arm, StretchedArmEndsInTheLastXBin) {
   const qd::Matrix params = qd::Matrix::Zero(1, static_cast<Eigen::Index>(shape.param_count()));
   const std::uint64_t seed = 0;
   std::vector<qd::Trace> traces(1);
-  env.rollout({&shape, &params, &seed, 0, 1}, traces.data());
+  env.rollout({&shape, params.data(), &seed, 0, 1}, traces.data());
   ASSERT_EQ(traces[0].status, qd::EvalStatus::kOk);
   EXPECT_EQ(traces[0].steps, 50);
   std::int64_t cell = -1;

@@ -468,7 +468,7 @@ void check_determinism(Task task) {
   auto batch = [&](std::size_t begin, std::size_t end) {
     qd::RolloutBatch b;
     b.shape = &shape;
-    b.params = &params;
+    b.params = params.data();
     b.episode_seeds = seeds;
     b.begin = begin;
     b.end = end;

@@ -213,7 +213,7 @@ TEST(StrikerEpisode, ZeroActionEndsAtStepZero) {
   qd::Matrix params = qd::Matrix::Zero(1, 1635);
   qd::RolloutBatch batch;
   batch.shape = &striker_shape();
-  batch.params = &params;
+  batch.params = params.data();
   batch.begin = 0;
   batch.end = 1;
   qd::Trace trace;
@@ -409,7 +409,7 @@ TEST(StrikerEpisode, DeterministicAcrossRepeatsAndThreads) {
   auto batch_for = [&](std::size_t begin, std::size_t end) {
     qd::RolloutBatch batch;
     batch.shape = &striker_shape();
-    batch.params = &params;
+    batch.params = params.data();
     batch.begin = begin;
     batch.end = end;
     return batch;

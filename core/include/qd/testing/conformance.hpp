@@ -129,7 +129,7 @@ struct PolicyBatch {
 
   std::size_t size() const noexcept { return static_cast<std::size_t>(params.rows()); }
   RolloutBatch range(std::size_t begin, std::size_t end) const {
-    return {&shape, &params, episode_seeds.data(), begin, end};
+    return {&shape, params.data(), episode_seeds.data(), begin, end};
   }
 };
 
