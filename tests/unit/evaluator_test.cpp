@@ -131,6 +131,25 @@ TEST(Evaluator, ProcessesEqualThreads) {
   EXPECT_EQ(b.status[7], EvalStatus::kInvalidAction);
 }
 
+// Rows wider than the copy step (64 kB) reach the workers one at a time while they already run the
+// first ones: every row is read only once it is copied, so a new batch never sees the last one's.
+TEST(Evaluator, ProcessesReadEachRowOnlyOnceItIsCopied) {
+  const ScriptedEnvironment env;
+  const ScriptedDescriptor desc;
+  const PolicyShape shape(6, {1500}, 3);  // 15 003 parameters: 120 kB per row
+  ASSERT_GT(shape.param_count() * sizeof(double), std::size_t{64} << 10);
+  runtime::ThreadEvaluator serial(env, desc, shape, 1);
+  runtime::ProcessEvaluator procs(env, desc, shape, 2, 40, 60);
+  std::vector<std::uint64_t> seeds(40, 0);
+  for (std::uint64_t round = 0; round < 3; ++round) {
+    const Matrix params = random_params(shape, 40, 100 + round);
+    runtime::Evaluations a, b;
+    serial.evaluate(params, seeds, a);
+    procs.evaluate(params, seeds, b);
+    expect_same(a, b);
+  }
+}
+
 // A worker process that dies gives a WorkerFailure naming it, not a hang or a crash.
 TEST(Evaluator, DeadWorkerProcessIsReported) {
   const ScriptedEnvironment env;

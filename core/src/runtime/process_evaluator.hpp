@@ -54,8 +54,9 @@ class ProcessEvaluator final : public Evaluator {
   };
   [[noreturn]] void child_main(int w, int fd);
   void work(int w, RowEvaluator& ev);
-  // Runs the `rows` rows already in shared memory through the workers; records stay there.
-  void run_batch(std::size_t rows, std::size_t first_row);
+  // Runs `rows` rows through the workers; their records stay in shared memory. The rows are copied
+  // into shared memory while the workers already evaluate the first ones.
+  void run_batch(const double* params, const std::uint64_t* seeds, std::size_t rows, std::size_t first_row);
   // Ends the workers and throws: an EvaluationFault when `current` (RowEvaluator::progress_code)
   // names the offspring the worker was on, else a WorkerFailure.
   [[noreturn]] void fail(const std::string& message, std::uint64_t current = 0);
