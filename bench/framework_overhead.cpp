@@ -14,6 +14,10 @@
 // is being written may overlap its background disk writes (a few per cent of a loop's time on
 // Striker, on the other core). Bare batches evict the run's batch buffer from the cache, which
 // only makes the run slower. --whole alternates whole bare loops and whole runs instead.
+//
+// One worker is by default one supervised worker process (backend=auto); --set
+// evaluation.backend=threads measures the unsupervised in-process mode. The run's CPU time
+// (cpu_ratio) includes its worker processes'.
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
 #include "runtime/run.hpp"
@@ -223,10 +227,10 @@ int main(int argc, char** argv) {
     }
     const double n = static_cast<double>(total);
     std::printf(
-        "experiment=%s params=%zu evaluations=%llu workers=%d same_policies=%d "
+        "experiment=%s params=%zu evaluations=%llu workers=%d backend=%s same_policies=%d "
         "bare_us_per_step=%.3f\n",
-        argv[1], params_count, static_cast<unsigned long long>(total), workers, same_policies ? 1 : 0,
-        1e6 * best_bare / static_cast<double>(bare_steps));
+        argv[1], params_count, static_cast<unsigned long long>(total), workers, ex.settings.backend.c_str(),
+        same_policies ? 1 : 0, 1e6 * best_bare / static_cast<double>(bare_steps));
     if (whole) {
       std::printf(
           "bare_loop_evals_per_s=%.1f qdrun_evals_per_s=%.1f ratio=%.4f bare_us_per_eval=%.2f qdrun_us_per_eval=%.2f "

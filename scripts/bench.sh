@@ -18,7 +18,8 @@ cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DQD_BUILD_BENCHMARKS=ON
 cmake --build build --parallel > /dev/null
 fo=build/bin/qd_framework_overhead
 echo "# machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores"
-echo "# the paper's workloads: qdrun vs a bare rollout loop with the same environment object, 1 and 2 workers"
+echo "# the paper's workloads: qdrun vs a bare rollout loop with the same environment object, 1 and 2 workers,"
+echo "#   and 1 worker in-process (backend=threads) beside the default supervised worker process (backend=auto)"
 echo "#   ps-uniform: the bare loop rolls out the very same policies, so the ratio is the framework alone"
 echo "#   MAPE-Iso: qdrun also pays the plugin's mutation"
 for env in striker striker-mix-scale bipedal-walker bipedal-walker-mix-scale bipedal-kicker bipedal-kicker-mix-scale; do
@@ -27,6 +28,8 @@ for env in striker striker-mix-scale bipedal-walker bipedal-walker-mix-scale bip
   for w in 1 2; do
     $fo experiments/$env/ps-uniform.toml --workers $w --repeat 2 --set experiment.loops=$loops
   done
+  # the default above runs one supervised worker process; this is the unsupervised in-process mode
+  $fo experiments/$env/ps-uniform.toml --workers 1 --repeat 2 --set experiment.loops=$loops --set evaluation.backend=threads
 done
 for env in striker bipedal-walker; do
   loops=11
