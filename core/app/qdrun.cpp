@@ -5,8 +5,8 @@
 // threw; plugin output broke its contract) or a worker process or MPI rank died or hung; 4 a
 // system or I/O error (disk full, no memory, no process or thread could be created); 130 / 143
 // stopped by SIGINT / SIGTERM.
-#include "interrupt.hpp"
 #include "progress.hpp"
+#include "run_guard.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
 #include "runtime/replay.hpp"
@@ -203,8 +203,12 @@ int run_one(const Cli& cli, const std::string& command_line) {
     run.open_for_resume();
   else
     run.create_directory();
-  // Under mpirun, mpirun owns the signals: it ends every rank, and the MPI backend reports it.
-  if (mpi_size() <= 1) app::stop_on_signals(run.directory(), terminal && !cli.quiet);
+  // Under mpirun, mpirun owns SIGINT and SIGTERM: it ends every rank, and the MPI backend reports
+  // it. Fatal signals and exit() in this process are reported in every case.
+  app::guard_run(run.directory(), terminal && !cli.quiet, mpi_size() <= 1);
+  struct EndOfRun {
+    ~EndOfRun() { app::end_of_run(); }
+  } end_of_run;
   try {
     const bool finished = run.run();
     printer.finish();

@@ -15,9 +15,13 @@
 # threads (2 threads in qdrun's process), inprocess (--backend threads --workers 1), mpi (mpirun
 # -np 2: each rank evaluates in a supervised worker process of its own; every run of the case,
 # the --resume included, under mpirun), mpi1 (mpirun -np 1: rank 0 evaluates every offspring,
-# so its own worker process meets the fault). Faults that end a process (segfault, abort, exit0, exit1,
-# hang) are only observable in worker processes: they are skipped (exit 77) for threads and
-# inprocess, which are documented as unsupervised.
+# so its own worker process meets the fault). On the unsupervised threads and inprocess backends a
+# rollout that crashes or exits takes qdrun's own process with it: qdrun's guards then leave status
+# "failed: SIGSEGV in rollout() of ..." (or "exit(0) called in ..."), one line on stderr and the
+# signal's exit status (139, 134) or exit code 3; a hang there cannot be timed out (documented), so
+# that case is skipped (exit 77). mutator-segfault and mutator-exit0 crash or exit in mutate(), which
+# runs in qdrun's own process under every backend (not run under mpirun, which reports a dead rank
+# 0 in its own words).
 source "$(dirname "$0")/lib.sh"
 qdrun=$1 plugins=$2 out=$3 case=$4 backend=$5
 launch=()
@@ -41,9 +45,17 @@ env_fault=none mutator='type = "iso"
 sigma = 0.1' representation='type = "none"'
 case $case in
 segfault | abort | exit0 | exit1 | hang)
-  if [ "$backend" = threads ] || [ "$backend" = inprocess ]; then echo "SKIPPED: $backend is unsupervised"; exit 77; fi
+  if [ $case = hang ] && { [ "$backend" = threads ] || [ "$backend" = inprocess ]; }; then
+    echo "SKIPPED: $backend is unsupervised and cannot time out a rollout"; exit 77
+  fi
   env_fault=$case ;;
 throw | nan-fitness | inf-descriptor | nan-descriptor | cell-out-of-range) env_fault=$case ;;
+mutator-segfault | mutator-exit0)
+  if [ "$backend" = mpi ] || [ "$backend" = mpi1 ]; then echo "SKIPPED: mpirun reports a dead rank 0 itself"; exit 77; fi
+  mutator="type = \"fault-mutator\"
+fault = \"${case#mutator-}\"
+fault_loop = 2
+fault_iteration = 1" ;;
 mutator-*) mutator="type = \"fault-mutator\"
 fault = \"${case#mutator-}\"
 fault_loop = 2
@@ -91,7 +103,13 @@ clean=$(run_dir "$out/clean")
 grep -qx complete "$clean/status"
 
 set +e
-run -o "$out/faulty" 2> "$out/err"
+if [ ${#launch[@]} -eq 0 ]; then
+  # exec: the subshell becomes qdrun, so the shell's "Segmentation fault" report of its death goes
+  # to this script's stderr, not into the file that must hold qdrun's one line.
+  (exec "$qdrun" "$out/fault.toml" --plugin-path "$plugins" -q "${backend_args[@]}" -o "$out/faulty" 2> "$out/err")
+else
+  run -o "$out/faulty" 2> "$out/err"
+fi
 got=$?
 set -e
 dir=$(run_dir "$out/faulty")
@@ -131,6 +149,23 @@ mutator-throw) regex="^qdrun: error: mutator 'fault-mutator' $lib threw from mut
 repr-nan-decode) regex="^qdrun: error: representation 'fault-linear' $lib decode\(\) returned nan \(row 0, column 0\)" ;;
 repr-short-encode) regex="^qdrun: error: representation 'fault-linear' $lib encode\(\) returned 9 x 2, expected 10 x 2" ;;
 esac
+# Crashes and exits in qdrun's own process: its guards name the call, the component and its library.
+want=3
+own="$lib, after loop 2 iteration 0; the last checkpoint is intact: fix the cause and qdrun --resume $dir\$"
+in_process=false
+case $backend in threads | inprocess) in_process=true ;; esac
+case $case in
+segfault | abort | exit0 | exit1)
+  if $in_process; then
+    case $case in
+    segfault) regex="^qdrun: failed: SIGSEGV \(segmentation fault\) in rollout\(\) of environment 'fault-arm' $own" want=139 ;;
+    abort) regex="^qdrun: failed: SIGABRT \(abort\) in rollout\(\) of environment 'fault-arm' $own" want=134 ;;
+    *) regex="^qdrun: failed: exit\(${case#exit}\) called in rollout\(\) of environment 'fault-arm' $own" ;;
+    esac
+  fi ;;
+mutator-segfault) regex="^qdrun: failed: SIGSEGV \(segmentation fault\) in mutate\(\) of mutator 'fault-mutator' $own" want=139 ;;
+mutator-exit0) regex="^qdrun: failed: exit\(0\) called in mutate\(\) of mutator 'fault-mutator' $own" ;;
+esac
 # Under MPI a dead or hung worker process is named with its rank and host.
 case $case in
 segfault | abort | exit0 | exit1 | hang)
@@ -139,19 +174,22 @@ segfault | abort | exit0 | exit1 | hang)
   mpi1) regex="MPI rank 0 on [^ ]+: $regex" ;;
   esac ;;
 esac
-# Rollout and descriptor faults name the offspring and save it for the plugin's author.
-case $case in
-mutator-* | repr-*) ;;
-*)
+check_fault_offspring() {
   regex="$regex.*\(offspring 4 of $where; parameters and episode seed in $dir/fault-offspring.csv\)"
   [ "$(sed -n 2p "$dir/fault-offspring.csv" | cut -d, -f1-3)" = "2,1,4" ] \
     || { echo "fault-offspring.csv: $(cat "$dir/fault-offspring.csv" 2>&1)"; exit 1; }
   [ "$(head -n 1 "$dir/fault-offspring.csv" | tr ',' '\n' | grep -c '^solution_')" -eq \
     "$(sed -n 2p "$dir/fault-offspring.csv" | tr ',' '\n' | tail -n +5 | grep -c .)" ] \
     || { echo "fault-offspring.csv: header and row differ"; exit 1; }
-  ;;
+}
+# Rollout and descriptor faults name the offspring and save it for the plugin's author (not a crash
+# in qdrun's own process: its signal handler only writes prepared text).
+case $case in
+mutator-* | repr-*) ;;
+segfault | abort | exit0 | exit1) $in_process || check_fault_offspring ;;
+*) check_fault_offspring ;;
 esac
-expect_failed_run "$got" 3 "$out/err" "$regex" "$dir"
+expect_failed_run "$got" $want "$out/err" "$regex" "$dir"
 grep -Eq "^failed: .*'fault-[a-z]+' $lib" "$dir/status" || { echo "status: $(cat "$dir/status")"; exit 1; }
 QD_FAULT_DISABLE=1 "${launch[@]}" "$qdrun" --resume "$dir" --plugin-path "$plugins" -q
 grep -qx complete "$dir/status"

@@ -9,7 +9,8 @@
 //    episode seed, which the core derives from (run seed, loop, iteration, offspring), so the
 //    fault lands on the same offspring whatever the backend or worker count.
 //  * mutator "fault-mutator": a uniform sampler that, at (fault_loop, fault_iteration), returns
-//    one row too few (short), a NaN parameter (nan) or throws (throw).
+//    one row too few (short), a NaN parameter (nan), throws (throw), crashes (segfault) or calls
+//    exit(0) (exit0): mutators run in qdrun's own process under every backend.
 //  * representation "fault-linear": latent code = the first `latent` parameters; from loop
 //    fault_loop (>= 2) on its decode() returns NaN (nan-decode) or encode() one row too few
 //    (short-encode).
@@ -145,7 +146,8 @@ class FaultEndpoint final : public qd::Descriptor {
 };
 
 constexpr qd::ParamSpec kMutatorParams[] = {
-    qd::param_string("fault", "\"none\"", "none|short|nan|throw", "what mutate() does at the chosen iteration"),
+    qd::param_string("fault", "\"none\"", "none|short|nan|throw|segfault|exit0",
+                     "what mutate() does at the chosen iteration (in qdrun's own process)"),
     qd::param_int("fault_loop", "1", 1, 1e9, "loop of the faulty batch"),
     qd::param_int("fault_iteration", "0", 0, 1e9, "iteration of the faulty batch"),
 };
@@ -163,6 +165,8 @@ class FaultMutator final : public qd::Mutator {
     if (fault_ == "short") out.theta.conservativeResize(static_cast<Eigen::Index>(count) - 1, out.theta.cols());
     if (fault_ == "nan") out.theta(0, 0) = std::numeric_limits<double>::quiet_NaN();
     if (fault_ == "throw") throw std::runtime_error("deliberate fault in mutate()");
+    if (fault_ == "segfault") std::raise(SIGSEGV);
+    if (fault_ == "exit0") std::exit(0);
   }
 
  private:

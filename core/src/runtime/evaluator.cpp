@@ -1,5 +1,6 @@
 #include "runtime/evaluator.hpp"
 
+#include "runtime/plugin_call.hpp"
 #include "runtime/process_evaluator.hpp"
 
 #include <qd/errors.hpp>
@@ -140,6 +141,7 @@ std::string what_of(const std::exception_ptr& e) {
 
 void guarded_rollout(const Environment& env, const std::string& label, const RolloutBatch& b, Trace* traces,
                      std::size_t offset) {
+  const PluginCallScope scope(label, "rollout()");
   std::exception_ptr error;
   try {
     env.rollout(b, traces);
@@ -166,6 +168,7 @@ void guarded_rollout(const Environment& env, const std::string& label, const Rol
 
 void guarded_describe(const Descriptor& desc, const std::string& label, const Trace& t, std::int64_t* cell,
                       double* values, std::size_t offspring) {
+  const PluginCallScope scope(label, "describe()");
   try {
     desc.describe(&t, 1, cell, values);
   } catch (...) {

@@ -10,6 +10,7 @@
 
 #include "runtime/components.hpp"
 #include "runtime/evaluator.hpp"
+#include "runtime/plugin_call.hpp"
 
 #include <qd/errors.hpp>
 #include <qd/mutator.hpp>
@@ -74,6 +75,7 @@ class CheckedRepresentation final : public Representation {
 // the plugin: it becomes a PluginError naming it and the call.
 template <class F>
 void call_plugin(const std::string& who, const char* call, F&& f) {
+  const PluginCallScope scope(who, call);  // named if it crashes or calls exit()
   try {
     f();
   } catch (const SystemError&) {
