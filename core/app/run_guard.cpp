@@ -8,6 +8,7 @@
 #include <unistd.h>
 #include <atomic>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 
@@ -148,6 +149,14 @@ void on_exit_during_run(int code, void*) {
   ::_exit(kExitPluginFault);
 }
 
+void on_quick_exit_during_run() {
+  if (!g_running.load() || g_reporting.test_and_set()) return;
+  char text[9000];
+  char* at = describe_fault(text, text + sizeof(text) - 2, "quick_exit() called");
+  report(text, at);
+  ::_exit(kExitPluginFault);
+}
+
 }  // namespace
 
 void guard_run(const std::filesystem::path& run_dir, bool terminal, bool handle_stop_signals) {
@@ -186,6 +195,7 @@ void guard_run(const std::filesystem::path& run_dir, bool terminal, bool handle_
 
   // Registered last, so it runs before every other exit handler (the C++ runtime's, MPI's).
   ::on_exit(on_exit_during_run, nullptr);
+  std::at_quick_exit(on_quick_exit_during_run);
   g_running.store(true);
 }
 

@@ -7,8 +7,9 @@
 //    crashed. Status "failed: SIGSEGV in rollout() of environment 'x' (/path/lib.so), after loop L
 //    iteration I; ...", the same line on stderr, then the signal's default action (exit status
 //    128 + the signal).
-//  * exit() while the run is under way, from plugin code in qdrun's own process: status "failed:
-//    exit(C) called in ...", the line on stderr, exit code 3 (a plugin fault during the run).
+//  * exit() (or quick_exit()) while the run is under way, from plugin code in qdrun's own process:
+//    status "failed: exit(C) called in ...", the line on stderr, exit code 3 (a plugin fault during
+//    the run).
 // _exit() and SIGKILL cannot be intercepted; worker processes are supervised instead (issue 20).
 #pragma once
 

@@ -19,9 +19,9 @@
 # rollout that crashes or exits takes qdrun's own process with it: qdrun's guards then leave status
 # "failed: SIGSEGV in rollout() of ..." (or "exit(0) called in ..."), one line on stderr and the
 # signal's exit status (139, 134) or exit code 3; a hang there cannot be timed out (documented), so
-# that case is skipped (exit 77). mutator-segfault and mutator-exit0 crash or exit in mutate(), which
-# runs in qdrun's own process under every backend (not run under mpirun, which reports a dead rank
-# 0 in its own words).
+# that case is skipped (exit 77). mutator-segfault, mutator-exit0 and mutator-quick-exit crash or
+# exit in mutate(), which runs in qdrun's own process under every backend (not run under mpirun,
+# which reports a dead rank 0 in its own words).
 source "$(dirname "$0")/lib.sh"
 qdrun=$1 plugins=$2 out=$3 case=$4 backend=$5
 launch=()
@@ -50,7 +50,7 @@ segfault | abort | exit0 | exit1 | hang)
   fi
   env_fault=$case ;;
 throw | nan-fitness | inf-descriptor | nan-descriptor | cell-out-of-range) env_fault=$case ;;
-mutator-segfault | mutator-exit0)
+mutator-segfault | mutator-exit0 | mutator-quick-exit)
   if [ "$backend" = mpi ] || [ "$backend" = mpi1 ]; then echo "SKIPPED: mpirun reports a dead rank 0 itself"; exit 77; fi
   mutator="type = \"fault-mutator\"
 fault = \"${case#mutator-}\"
@@ -165,6 +165,7 @@ segfault | abort | exit0 | exit1)
   fi ;;
 mutator-segfault) regex="^qdrun: failed: SIGSEGV \(segmentation fault\) in mutate\(\) of mutator 'fault-mutator' $own" want=139 ;;
 mutator-exit0) regex="^qdrun: failed: exit\(0\) called in mutate\(\) of mutator 'fault-mutator' $own" ;;
+mutator-quick-exit) regex="^qdrun: failed: quick_exit\(\) called in mutate\(\) of mutator 'fault-mutator' $own" ;;
 esac
 # Under MPI a dead or hung worker process is named with its rank and host.
 case $case in

@@ -10,7 +10,8 @@
 //    fault lands on the same offspring whatever the backend or worker count.
 //  * mutator "fault-mutator": a uniform sampler that, at (fault_loop, fault_iteration), returns
 //    one row too few (short), a NaN parameter (nan), throws (throw), crashes (segfault) or calls
-//    exit(0) (exit0): mutators run in qdrun's own process under every backend.
+//    exit(0) (exit0) or quick_exit(0) (quick-exit): mutators run in qdrun's own process under every
+//    backend.
 //  * representation "fault-linear": latent code = the first `latent` parameters; from loop
 //    fault_loop (>= 2) on its decode() returns NaN (nan-decode) or encode() one row too few
 //    (short-encode).
@@ -146,7 +147,7 @@ class FaultEndpoint final : public qd::Descriptor {
 };
 
 constexpr qd::ParamSpec kMutatorParams[] = {
-    qd::param_string("fault", "\"none\"", "none|short|nan|throw|segfault|exit0",
+    qd::param_string("fault", "\"none\"", "none|short|nan|throw|segfault|exit0|quick-exit",
                      "what mutate() does at the chosen iteration (in qdrun's own process)"),
     qd::param_int("fault_loop", "1", 1, 1e9, "loop of the faulty batch"),
     qd::param_int("fault_iteration", "0", 0, 1e9, "iteration of the faulty batch"),
@@ -167,6 +168,7 @@ class FaultMutator final : public qd::Mutator {
     if (fault_ == "throw") throw std::runtime_error("deliberate fault in mutate()");
     if (fault_ == "segfault") std::raise(SIGSEGV);
     if (fault_ == "exit0") std::exit(0);
+    if (fault_ == "quick-exit") std::quick_exit(0);
   }
 
  private:
