@@ -2,6 +2,7 @@
 
 #include "runtime/checkpoint.hpp"
 #include "runtime/components.hpp"
+#include "runtime/cost_estimate.hpp"
 #include "runtime/evaluator.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/run.hpp"
@@ -18,6 +19,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <map>
@@ -94,6 +96,10 @@ struct PlannedRun {
   Action action = Action::kFresh;
   std::string why;                 // for the start/skip line
   std::vector<std::string> child;  // qdrun arguments (without the executable and --workers)
+  std::string file;                // the experiment file, and the overrides the run gets
+  std::vector<std::string> overrides;
+  const std::uint64_t* seed = nullptr;
+  int first_loop = 0;  // the loop a resumed run starts at
 };
 
 class RegistryCache {
@@ -148,15 +154,34 @@ Checked check(const Document& doc, const Registry& reg) {
   return {s, canonical(ex.resolved_toml), fs::path(s.output_dir) / s.name / ("seed-" + std::to_string(s.seed))};
 }
 
+// The experiment file with the run's overrides, seed and output directory applied.
+Document read_run_document(const SweepOptions& o, const std::string& file, const std::uint64_t* seed,
+                           const std::vector<std::string>& overrides) {
+  Document doc = Document::read(file);
+  for (const auto& s : overrides) doc.apply_override(s);
+  if (seed) doc.apply_override("experiment.seed=" + std::to_string(*seed));
+  if (!o.output.empty()) doc.apply_override("output.dir=" + toml_quote(o.output));
+  return doc;
+}
+
+// Loops metrics.csv shows complete (loop 0's single row, or a loop's last iteration): where a
+// resumed run will start, give or take the checkpoint it returns to.
+int completed_loops(const fs::path& metrics, int iterations) {
+  std::ifstream in(metrics);
+  std::string line;
+  int done = 0;
+  std::getline(in, line);  // header: loop,iteration,...
+  while (std::getline(in, line)) {
+    int loop = -1, it = -1;
+    if (std::sscanf(line.c_str(), "%d,%d", &loop, &it) != 2) continue;
+    if (loop == 0 || it == iterations - 1) done = std::max(done, loop + 1);
+  }
+  return done;
+}
+
 PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::uint64_t* seed, RegistryCache& regs) {
   std::vector<std::string> overrides = o.sets;
-  auto read = [&](const std::vector<std::string>& extra) {
-    Document doc = Document::read(file);
-    for (const auto& s : extra) doc.apply_override(s);
-    if (seed) doc.apply_override("experiment.seed=" + std::to_string(*seed));
-    if (!o.output.empty()) doc.apply_override("output.dir=" + toml_quote(o.output));
-    return doc;
-  };
+  auto read = [&](const std::vector<std::string>& extra) { return read_run_document(o, file, seed, extra); };
   Document doc = read(overrides);
   const Registry& reg = regs.get(doc.plugin_paths());
   runtime::Experiment ex = runtime::resolve(doc, reg);
@@ -178,6 +203,9 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
   const Checked now = check(doc, reg);
 
   PlannedRun p;
+  p.file = file;
+  p.overrides = overrides;
+  p.seed = seed;
   p.dir = now.dir;
   p.label = now.settings.name + "/seed-" + std::to_string(now.settings.seed);
   p.child.push_back(file);
@@ -228,8 +256,10 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
     p.why = "complete, " + std::to_string(old_loops) + " loops";
   } else if (complete) {
     p.action = Action::kResume;
+    p.first_loop = old_loops;
     p.why = "resume: extend " + std::to_string(old_loops) + " to " + std::to_string(now.settings.loops) + " loops";
   } else {
+    p.first_loop = completed_loops(p.dir / "metrics.csv", now.settings.iterations);
     p.action = Action::kResume;
     std::string s = status.substr(0, status.find('\n'));
     p.why = "resume: was '" + s + "'";
@@ -302,6 +332,69 @@ std::set<std::string> included_files(const std::vector<std::string>& files) {
     }
   }
   return out;
+}
+
+// The tables a loop-0 pilot depends on: runs that share them share the pilot's episode costs.
+std::string pilot_key(const std::string& resolved_toml) {
+  std::string key;
+  std::istringstream in(canonical(resolved_toml));
+  std::string line, table;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line[0] == '[') table = line;
+    if (table == "[environment]" || table == "[descriptor]" || table == "[initial]" || table == "[policy]" ||
+        (table == "[experiment]" && line.rfind("initial_samples", 0) == 0))
+      key += line + "\n";
+  }
+  return key;
+}
+
+std::string hours(double seconds) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, seconds < 36 ? "%.3f" : "%.2f", seconds / 3600.0);
+  return buf;
+}
+
+// --dry-run's estimate: per run and in total, in core-hours, and the sweep's wall time on this
+// machine. Pilots run loop 0 of each distinct environment setup once (the first seed's).
+void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& runs,
+                         const std::vector<std::size_t>& pending, RegistryCache& regs, int concurrent, int workers,
+                         int hw) {
+  std::map<std::string, runtime::EpisodePilot> pilots;
+  double episodes = 0, training = 0;
+  std::printf("estimate (one core per run; episodes from a pilot of loop 0, training timed by the representation):\n");
+  for (std::size_t i : pending) {
+    const PlannedRun& r = runs[i];
+    Document doc = read_run_document(o, r.file, r.seed, r.overrides);
+    const Registry& reg = regs.get(doc.plugin_paths());
+    runtime::Experiment ex = runtime::resolve(doc, reg);
+    runtime::Components c = runtime::build_components(ex, reg);
+    const std::string key = pilot_key(ex.resolved_toml);
+    auto it = pilots.find(key);
+    runtime::CostEstimate e;
+    try {
+      if (it == pilots.end()) it = pilots.emplace(key, runtime::run_episode_pilot(ex.settings, c)).first;
+      e = runtime::estimate_run_cost(ex.settings, c, it->second, r.first_loop);
+    } catch (const PluginError& fault) {
+      // Plugin code failed while running (the pilot's episodes, the model's timing): as in a run, exit 3.
+      throw runtime::WorkerFailure(std::string(fault.what()) + " (in the --dry-run estimate of " + r.label + ")");
+    }
+    const runtime::EpisodePilot& p = it->second;
+    episodes += e.episode_seconds;
+    training += e.training_seconds;
+    std::printf(
+        "  %-44s %8s core-h: %lld evaluations %s h, training %s h (loop 0: %.2f ms/episode, %.0f of %d steps, "
+        "|D| %zu)\n",
+        r.label.c_str(), hours(e.total_seconds()).c_str(), e.evaluations, hours(e.episode_seconds).c_str(),
+        hours(e.training_seconds).c_str(), 1e3 * p.seconds / std::max<std::size_t>(p.episodes, 1), p.mean_steps,
+        p.max_steps, p.loop0_archive);
+    std::fflush(stdout);
+  }
+  const int cores = std::max(1, std::min(hw, concurrent * workers));
+  std::printf(
+      "sweep: estimated %s core-hours (episodes %s, training %s); on this machine, %d at a time on %d core%s: "
+      "about %s hours\n",
+      hours(episodes + training).c_str(), hours(episodes).c_str(), hours(training).c_str(), concurrent, cores,
+      cores == 1 ? "" : "s", hours((episodes + training) / cores).c_str());
 }
 
 }  // namespace
@@ -403,8 +496,15 @@ int run_sweep(const SweepOptions& o,
     }
   }
   std::fflush(stdout);
-  if (o.dry_run) return 0;
+  if (o.dry_run) {
+    print_cost_estimate(o, runs, pending, regs, concurrent, workers, hw);
+    return 0;
+  }
 
+  // Each run's OpenMP threads (the autoencoder's training) stay within its share of the cores:
+  // concurrent runs that each train on every core spin-wait on each other's threads, which made
+  // two concurrent Walker fits 3 times slower (docs/performance.md). Results do not depend on it.
+  if (std::getenv("OMP_THREAD_LIMIT") == nullptr) ::setenv("OMP_THREAD_LIMIT", std::to_string(workers).c_str(), 1);
   std::map<pid_t, std::pair<std::size_t, double>> running;  // pid -> (run, start time)
   std::size_t next = 0;
   while (next < pending.size() || !running.empty()) {

@@ -69,6 +69,10 @@ std::vector<std::string> Representation::log_files() const {
   return {};
 }
 
+std::vector<double> Representation::estimate_fit_seconds(const std::vector<std::size_t>& rows) const {
+  return std::vector<double>(rows.size(), 0.0);
+}
+
 void Mutator::begin_loop(const LoopContext&) {}
 void Mutator::feedback(const Feedback&) {}
 void Mutator::save(std::ostream&) const {}

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -561,17 +562,65 @@ int policy_params(const BuildContext& ctx) {
 
 Autoencoder::Autoencoder(const Config& cfg, const BuildContext& ctx) : hyper_(read_hyper(cfg)) {
   const int params = policy_params(ctx);
+  params_ = params;
   if (hyper_.latent > params)
     throw ConfigError("latent", "latent = " + std::to_string(hyper_.latent) + " exceeds the policy's parameter count " +
                                     std::to_string(params));
   model_ = make_model(hyper_, params, ctx.seed);
 }
 
-Autoencoder::Autoencoder(const Hyper& hyper, int params, std::uint64_t seed) : hyper_(hyper) {
+Autoencoder::Autoencoder(const Hyper& hyper, int params, std::uint64_t seed) : hyper_(hyper), params_(params) {
   if (hyper_.latent > params)
     throw ConfigError("latent", "latent = " + std::to_string(hyper_.latent) + " exceeds the policy's parameter count " +
                                     std::to_string(params));
   model_ = make_model(hyper_, params, seed);
+}
+
+int expected_epochs(const Hyper& hyper, int loop) {
+  const bool has_test = hyper.random_split || loop > 0;
+  return has_test ? std::min(hyper.max_epochs, hyper.early_stop_window + 2) : hyper.max_epochs;
+}
+
+std::vector<double> Autoencoder::estimate_fit_seconds(const std::vector<std::size_t>& rows) const {
+  std::vector<double> seconds(rows.size(), 0.0);
+  if (rows.empty()) return seconds;
+  // An epoch costs time linear in the rows (minibatches of a fixed size): time one at a probe size
+  // and scale. Two probes, because an epoch without a test set trains on every row, and one with
+  // it trains on (1 - test_fraction) of them and evaluates the rest.
+  constexpr int kProbeEpochs = 2;
+  const std::size_t largest = *std::max_element(rows.begin(), rows.end());
+  const std::size_t probe_rows = std::clamp<std::size_t>(largest, 256, 1024);
+  Dataset data(static_cast<std::size_t>(params_));
+  Rng rng(0, Stream::kTraining, 0);
+  std::vector<double> theta(static_cast<std::size_t>(params_));
+  for (std::size_t r = 0; r < probe_rows; ++r) {
+    for (double& x : theta) x = rng.uniform(-1.0, 1.0);
+    data.add(theta.data(), static_cast<std::int64_t>(r), 0);
+  }
+  auto seconds_per_row_epoch = [&](int loop) {
+    Hyper probe = hyper_;
+    probe.threads = 1;  // core-seconds
+    probe.max_epochs = kProbeEpochs;
+    // The fastest of a few probes (at least 0.2 s in all): an idle machine's time, without the
+    // scheduler's noise on a probe of a few milliseconds.
+    double best = std::numeric_limits<double>::infinity(), spent = 0.0;
+    for (int probe_run = 0; probe_run < 20 && (probe_run < 3 || spent < 0.2); ++probe_run) {
+      const auto model = make_model(probe, params_, 0);
+      const auto start = std::chrono::steady_clock::now();
+      const FitReport report = model->fit(data, FitContext{loop, 0, ""});
+      const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      spent += elapsed;
+      best = std::min(best, elapsed / (std::max(1, report.epochs) * static_cast<double>(probe_rows)));
+    }
+    return best;
+  };
+  const double first = seconds_per_row_epoch(0);
+  const double later = hyper_.random_split ? first : seconds_per_row_epoch(1);
+  for (std::size_t loop = 0; loop < rows.size(); ++loop) {
+    const int epochs = expected_epochs(hyper_, static_cast<int>(loop));
+    seconds[loop] = epochs * (loop == 0 ? first : later) * static_cast<double>(rows[loop]);
+  }
+  return seconds;
 }
 
 }  // namespace qd::autoencoder

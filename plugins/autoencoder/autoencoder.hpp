@@ -121,6 +121,11 @@ class Autoencoder final : public Representation {
     model_->reconstruction_errors(theta, errors);
   }
   std::vector<std::string> log_files() const override { return {kLossesFile}; }
+  // Times two epochs of a fresh model of this shape on random data (one thread) and scales them by
+  // the rows and by the epochs each loop runs: max_epochs where there is no test set (loop 0 of the
+  // reference split), early_stop_window + 2 otherwise, the fewest epochs early stopping allows and
+  // what later loops of full-length runs take (README.md).
+  std::vector<double> estimate_fit_seconds(const std::vector<std::size_t>& rows) const override;
   void save(std::ostream& out) const override { model_->save(out); }
   void load(std::istream& in) override { model_->load(in); }
 
@@ -129,7 +134,12 @@ class Autoencoder final : public Representation {
 
  private:
   Hyper hyper_;
+  int params_ = 0;
   std::unique_ptr<Model> model_;
 };
+
+// Epochs fit() runs at `loop` when early stopping stops it as soon as it may: max_epochs without a
+// test set, else early_stop_window + 2 (capped by max_epochs).
+int expected_epochs(const Hyper& hyper, int loop);
 
 }  // namespace qd::autoencoder

@@ -1,11 +1,13 @@
 #include "pca.hpp"
 
 #include <qd/errors.hpp>
+#include <qd/rng.hpp>
 #include <qd/state_io.hpp>
 
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -152,6 +154,32 @@ void PcaRepresentation::fit_matrix(const Matrix& data) {
   const double total = centred.squaredNorm();
   explained_variance_ = samples > 1.0 ? Vector(variance * (tiles / (samples - 1.0))) : Vector::Zero(latent_);
   explained_variance_ratio_ = total > 0.0 ? Vector(variance / total) : Vector::Zero(latent_);
+}
+
+std::vector<double> PcaRepresentation::estimate_fit_seconds(const std::vector<std::size_t>& rows) const {
+  std::vector<double> seconds(rows.size(), 0.0);
+  if (rows.empty()) return seconds;
+  const auto P = static_cast<Eigen::Index>(params_);
+  auto time_fit = [&](std::size_t n) {
+    PcaRepresentation probe(latent_, params_);
+    Rng rng(0, Stream::kTraining, 0);
+    Matrix data(static_cast<Eigen::Index>(n), P);
+    for (Eigen::Index r = 0; r < data.rows(); ++r)
+      for (Eigen::Index c = 0; c < P; ++c) data(r, c) = rng.uniform(-1.0, 1.0);
+    const auto start = std::chrono::steady_clock::now();
+    probe.fit_matrix(data);
+    Vector errors;
+    probe.reconstruction_errors(data, errors);  // fit() computes the training loss too
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
+  const std::size_t lo = std::max<std::size_t>(1, *std::min_element(rows.begin(), rows.end()));
+  const std::size_t hi = std::max(lo, *std::max_element(rows.begin(), rows.end()));
+  const double t_lo = time_fit(lo), t_hi = hi == lo ? t_lo : time_fit(hi);
+  const double exponent =
+      hi == lo || t_lo <= 0 || t_hi <= 0 ? 1.0 : std::log(t_hi / t_lo) / std::log(static_cast<double>(hi) / lo);
+  for (std::size_t l = 0; l < rows.size(); ++l)
+    seconds[l] = rows[l] == 0 ? 0.0 : t_lo * std::pow(static_cast<double>(rows[l]) / static_cast<double>(lo), exponent);
+  return seconds;
 }
 
 FitReport PcaRepresentation::fit(const Dataset& data, const FitContext& ctx) {

@@ -3,7 +3,13 @@
 # holds the runs' final elites (median over 3 seeds = the middle archive size).
 source "$(dirname "$0")/lib.sh"
 qdrun=$1 src=$2 out=$3
-rm -rf "$out"
+rm -rf "$out" "$out-dry"
+# --dry-run: the plan and its estimate, nothing written.
+/usr/bin/python3 "$src/share/qdreport" --environments striker --algorithms iso --seeds 1 --loops 2 \
+  -o "$out-dry" --qdrun "$qdrun" --dry-run > "$out.log" 2>&1 || { cat "$out.log"; exit 1; }
+grep -Eq "^  striker-iso/seed-1 +[0-9.]+ core-h: 22000 evaluations" "$out.log" || { cat "$out.log"; exit 1; }
+grep -q "^sweep: estimated" "$out.log"
+[ ! -e "$out-dry" ] || { echo "qdreport --dry-run created $out-dry"; exit 1; }
 /usr/bin/python3 "$src/share/qdreport" --environments striker --algorithms poms,iso,ps-uniform --seeds 1,2,3 \
   --loops 2 --set experiment.iterations=2 --max-epochs 5 --note "a test note" -o "$out" --qdrun "$qdrun" \
   > "$out.log" 2>&1 \

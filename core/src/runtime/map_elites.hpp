@@ -51,12 +51,13 @@ class MapElites {
 
   // Runs loop `loop` (0 = the initial random phase) and fits the representation at its end.
   void run_loop(int loop);
+  // Loop 0 without the fit: what `qdrun --dry-run` times to estimate a run's cost.
+  void initial_sampling();
 
   std::uint64_t evaluations() const noexcept { return evaluations_; }
   void set_evaluations(std::uint64_t n) noexcept { evaluations_ = n; }  // when resuming
 
  private:
-  void initial_sampling();
   void iterate(int loop, int iteration);
   // Evaluates offspring_.theta with seeds_ into evaluated_ and checks the result. A plugin fault on
   // particular offspring is rethrown with the loop, iteration and offspring index, and their

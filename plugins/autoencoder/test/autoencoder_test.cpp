@@ -345,3 +345,35 @@ TEST(AutoencoderConformance, Float64AndFloat32) {
 }
 
 }  // namespace
+
+// --dry-run's training estimate: the epochs each loop is expected to run, and an epoch's time
+// scaling with the rows (the probe is timed once, so equal rows give equal seconds exactly).
+TEST(AutoencoderEstimate, ExpectedEpochsFollowTheSplitAndEarlyStopping) {
+  Hyper h;
+  h.max_epochs = 20000;
+  h.early_stop_window = 100;
+  EXPECT_EQ(qd::autoencoder::expected_epochs(h, 0), 20000);  // no test set in loop 0: no early stop
+  EXPECT_EQ(qd::autoencoder::expected_epochs(h, 1), 102);    // the first epoch the rule may stop at, + 1
+  h.random_split = true;
+  EXPECT_EQ(qd::autoencoder::expected_epochs(h, 0), 102);
+  h.max_epochs = 50;
+  EXPECT_EQ(qd::autoencoder::expected_epochs(h, 3), 50);
+}
+
+TEST(AutoencoderEstimate, SecondsScaleWithRowsAndEpochs) {
+  Hyper h = small_hyper(false);
+  h.max_epochs = 1000;
+  h.early_stop_window = 8;  // later loops: 10 epochs
+  const Autoencoder ae(h, 40, 1);
+  const std::vector<double> s = ae.estimate_fit_seconds({100, 100, 300, 0});
+  ASSERT_EQ(s.size(), 4u);
+  for (double v : s) EXPECT_TRUE(std::isfinite(v) && v >= 0);
+  EXPECT_GT(s[0], 0.0);
+  EXPECT_GT(s[1], 0.0);
+  EXPECT_DOUBLE_EQ(s[2], 3 * s[1]);
+  EXPECT_EQ(s[3], 0.0);
+  // Loop 0 trains 1000 epochs on every row, later loops 10 on 70 % of them: 1000/10/0.7 = 143
+  // times as long per row, give or take the test set's evaluation and the timer's noise.
+  EXPECT_GT(s[0] / s[1], 20.0);
+  EXPECT_TRUE(ae.estimate_fit_seconds({}).empty());
+}

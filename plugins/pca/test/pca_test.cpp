@@ -265,3 +265,14 @@ TEST(PcaTest, Conforms) {
 }
 
 }  // namespace
+
+// --dry-run's training estimate: one value per loop, equal for equal rows, interpolated between
+// the two timed fits.
+TEST(PcaEstimate, OneFiniteValuePerLoop) {
+  const qd::pca::PcaRepresentation pca(3, 20);
+  const std::vector<double> s = pca.estimate_fit_seconds({10, 40, 40, 200});
+  ASSERT_EQ(s.size(), 4u);
+  for (double v : s) EXPECT_TRUE(std::isfinite(v) && v > 0);
+  EXPECT_DOUBLE_EQ(s[1], s[2]);
+  EXPECT_TRUE(pca.estimate_fit_seconds({}).empty());
+}

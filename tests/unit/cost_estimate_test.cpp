@@ -1,0 +1,206 @@
+// qdrun --dry-run's cost model (runtime/cost_estimate.hpp) against hand-computed values: a scripted
+// environment whose episodes take θ1 steps in cell θ0, and a representation whose "measured" fit
+// time is a known function of the rows it is asked about.
+#include "runtime/cost_estimate.hpp"
+
+#include <qd/errors.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <deque>
+#include <stdexcept>
+#include <vector>
+
+using namespace qd;
+using namespace qd::runtime;
+
+namespace {
+
+constexpr std::int64_t kCells = 50;
+constexpr int kMaxSteps = 30;
+
+class StepsEnvironment final : public Environment {
+ public:
+  EnvironmentInfo info() const override { return {1, 1, kMaxSteps, ""}; }
+  void rollout(const RolloutBatch& b, Trace* traces) const override {
+    for (std::size_t i = b.begin; i < b.end; ++i) {
+      traces[i].main.reset(1);
+      traces[i].main.push(b.row(i)[0]);
+      traces[i].steps = static_cast<int>(b.row(i)[1]);
+    }
+  }
+};
+
+class CellDescriptor final : public Descriptor {
+ public:
+  GridSpec grid() const override { return {{kCells}, {"x"}, {0.0}, {double(kCells)}, kCells}; }
+  void describe(const Trace* traces, std::size_t n, std::int64_t* cells, double* values) const override {
+    for (std::size_t i = 0; i < n; ++i) {
+      values[i] = traces[i].main.row(0)[0];
+      cells[i] = static_cast<std::int64_t>(values[i]);
+    }
+  }
+};
+
+// Loop 0's rows (θ0, θ1) in order.
+class RowsSampler final : public Mutator {
+ public:
+  explicit RowsSampler(bool parents) : parents_(parents) {}
+  bool uses_parents() const noexcept override { return parents_; }
+  void mutate(const Parents&, std::size_t count, MutateContext&, Offspring& out) override {
+    out.reset(count, 4, 0);
+    out.theta.setZero();
+    for (std::size_t i = 0; i < count && i < rows.size(); ++i) {
+      out.theta(static_cast<Eigen::Index>(i), 0) = rows[i][0];
+      out.theta(static_cast<Eigen::Index>(i), 1) = rows[i][1];
+    }
+  }
+  std::vector<std::vector<double>> rows;
+
+ private:
+  bool parents_;
+};
+
+// A model whose fit "takes" half a second per row; or one that breaks the contract.
+class TimedModel final : public Representation {
+ public:
+  enum class Fault { kNone, kWrongSize, kNan, kThrows };
+  explicit TimedModel(int latent, Fault fault = Fault::kNone) : latent_(latent), fault_(fault) {}
+  int latent_size() const noexcept override { return latent_; }
+  FitReport fit(const Dataset&, const FitContext&) override { return {}; }
+  void encode(const Matrix& theta, Matrix& z) const override { z = theta.leftCols(latent_); }
+  void decode(const Matrix& z, Matrix& theta) const override { theta = Matrix::Zero(z.rows(), 4); }
+  void decoder_jacobians(const Matrix& z, std::vector<Matrix>& j) const override {
+    j.assign(static_cast<std::size_t>(z.rows()), Matrix::Zero(4, latent_));
+  }
+  std::vector<double> estimate_fit_seconds(const std::vector<std::size_t>& rows) const override {
+    asked.push_back(rows);
+    std::vector<double> s;
+    for (std::size_t r : rows) s.push_back(0.5 * static_cast<double>(r));
+    if (fault_ == Fault::kWrongSize) s.pop_back();
+    if (fault_ == Fault::kNan) s.back() = std::nan("");
+    if (fault_ == Fault::kThrows) throw std::runtime_error("no clock");
+    return s;
+  }
+  void save(std::ostream&) const override {}
+  void load(std::istream&) override {}
+  mutable std::vector<std::vector<std::size_t>> asked;
+
+ private:
+  int latent_;
+  Fault fault_;
+};
+
+template <class T, class... A>
+Owned<T> own(A&&... a) {
+  return Owned<T>(new T(std::forward<A>(a)...), LibraryHoldingDeleter{});
+}
+
+struct World {
+  World(bool parents, int latent, TimedModel::Fault fault = TimedModel::Fault::kNone) {
+    s.seed = 3;
+    s.loops = 3;
+    s.iterations = 2;
+    s.batch = 5;
+    s.initial_samples = 6;
+    s.insertion = "coin-flip";
+    s.dataset_order = "reference";
+    c.shape = PolicyShape(1, {1}, 1);
+    c.environment = own<StepsEnvironment>();
+    c.descriptor = own<CellDescriptor>();
+    c.grid = c.descriptor->grid();
+    auto m = own<TimedModel>(latent, fault);
+    model = m.get();
+    c.representation = std::move(m);
+    c.representation_label = "representation 'timed' (test)";
+    auto sampler = own<RowsSampler>(false);
+    sampler->rows = {{1, 2}, {1, 4}, {2, 6}, {3, 8}, {3, 10}, {3, 12}};
+    c.initial = std::move(sampler);
+    c.mutator = own<RowsSampler>(parents);
+  }
+  ExperimentSettings s;
+  Components c;
+  TimedModel* model = nullptr;
+};
+
+// A pilot of known numbers: 100 episodes of 10 steps in 2 s (2 ms per step), episodes up to 30
+// steps, 6 cells after loop 0.
+EpisodePilot known_pilot() {
+  EpisodePilot p;
+  p.episodes = 100;
+  p.seconds = 2.0;
+  p.mean_steps = 10;
+  p.max_steps = kMaxSteps;
+  p.loop0_archive = 6;
+  return p;
+}
+
+TEST(CostEstimate, PilotRunsLoopZeroAndCountsStepsAndCells) {
+  World w(true, 0);
+  const EpisodePilot p = run_episode_pilot(w.s, w.c);
+  EXPECT_EQ(p.episodes, 6u);
+  EXPECT_DOUBLE_EQ(p.mean_steps, 7.0);  // (2 + 4 + 6 + 8 + 10 + 12) / 6
+  EXPECT_EQ(p.max_steps, kMaxSteps);
+  EXPECT_EQ(p.loop0_archive, 3u);  // cells 1, 2, 3
+  EXPECT_GE(p.seconds, 0.0);
+}
+
+TEST(CostEstimate, MutationEpisodesLengthenTowardsTheCap) {
+  World w(true, 0);
+  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
+  const double later = 10 + kEpisodeGrowth * (kMaxSteps - 10);
+  EXPECT_EQ(e.evaluations, 6 + 2 * 2 * 5);
+  EXPECT_DOUBLE_EQ(e.episode_seconds, 6 * 10 * 2e-3 + 20 * later * 2e-3);
+  EXPECT_EQ(e.training_seconds, 0.0);  // no latent space: the model is not asked
+  EXPECT_TRUE(w.model->asked.empty());
+}
+
+TEST(CostEstimate, SamplerEpisodesStayAtLoopZeroLength) {
+  World w(false, 0);
+  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
+  EXPECT_DOUBLE_EQ(e.episode_seconds, 26 * 10 * 2e-3);
+}
+
+TEST(CostEstimate, TrainingAddsTheModelsTimeForTheExpectedDatasetSizes) {
+  World w(true, 1);
+  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
+  // |D| = 6 after loop 0, then 6 (1 + kDatasetGrowth sqrt(loop)).
+  const std::vector<std::size_t> rows = {6, static_cast<std::size_t>(6 * (1 + kDatasetGrowth)),
+                                         static_cast<std::size_t>(6 * (1 + kDatasetGrowth * std::sqrt(2.0)))};
+  ASSERT_EQ(w.model->asked.size(), 1u);
+  EXPECT_EQ(w.model->asked[0], rows);
+  EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * static_cast<double>(rows[0] + rows[1] + rows[2]));
+}
+
+TEST(CostEstimate, DatasetNeverOutgrowsTheGrid) {
+  EpisodePilot p = known_pilot();
+  p.loop0_archive = 40;
+  EXPECT_EQ(expected_dataset_rows(p, kCells, 0), 40u);
+  EXPECT_EQ(expected_dataset_rows(p, kCells, 100), static_cast<std::size_t>(kCells));
+}
+
+TEST(CostEstimate, AResumedRunCountsOnlyTheLoopsLeft) {
+  World w(true, 1);
+  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot(), 2);
+  const double later = 10 + kEpisodeGrowth * (kMaxSteps - 10);
+  EXPECT_EQ(e.evaluations, 10);
+  EXPECT_DOUBLE_EQ(e.episode_seconds, 10 * later * 2e-3);
+  EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * static_cast<double>(expected_dataset_rows(known_pilot(), kCells, 2)));
+}
+
+TEST(CostEstimate, AModelsBrokenEstimateEndsTheDryRunNamingIt) {
+  for (auto fault : {TimedModel::Fault::kWrongSize, TimedModel::Fault::kNan, TimedModel::Fault::kThrows}) {
+    World w(true, 1, fault);
+    try {
+      estimate_run_cost(w.s, w.c, known_pilot());
+      ADD_FAILURE() << "no error for fault " << static_cast<int>(fault);
+    } catch (const PluginError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("representation 'timed' (test)"), std::string::npos) << what;
+      EXPECT_NE(what.find("estimate_fit_seconds()"), std::string::npos) << what;
+    }
+  }
+}
+
+}  // namespace
