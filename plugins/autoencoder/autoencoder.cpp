@@ -12,9 +12,12 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
+#include <mutex>
 #include <numeric>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <utility>
 
 namespace qd::autoencoder {
@@ -590,6 +593,24 @@ std::vector<double> Autoencoder::estimate_fit_seconds(const std::vector<std::siz
   constexpr int kProbeEpochs = 2;
   const std::size_t largest = *std::max_element(rows.begin(), rows.end());
   const std::size_t probe_rows = std::clamp<std::size_t>(largest, 256, 1024);
+  // A sweep asks once per run, mostly about the same shapes: each shape is timed once per process.
+  using ProbeKey = std::tuple<int, int, int, int, bool, bool, double, std::size_t>;
+  static std::mutex cache_mutex;
+  static std::map<ProbeKey, std::pair<double, double>> cache;
+  const ProbeKey key{params_,        hyper_.hidden,       hyper_.latent,        hyper_.batch_size,
+                     hyper_.float64, hyper_.random_split, hyper_.test_fraction, probe_rows};
+  const std::lock_guard<std::mutex> lock(cache_mutex);
+  auto cached = cache.find(key);
+  if (cached == cache.end()) cached = cache.emplace(key, time_epochs(probe_rows, kProbeEpochs)).first;
+  const auto [first, later] = cached->second;
+  for (std::size_t loop = 0; loop < rows.size(); ++loop) {
+    const int epochs = expected_epochs(hyper_, static_cast<int>(loop));
+    seconds[loop] = epochs * (loop == 0 ? first : later) * static_cast<double>(rows[loop]);
+  }
+  return seconds;
+}
+
+std::pair<double, double> Autoencoder::time_epochs(std::size_t probe_rows, int epochs) const {
   Dataset data(static_cast<std::size_t>(params_));
   Rng rng(0, Stream::kTraining, 0);
   std::vector<double> theta(static_cast<std::size_t>(params_));
@@ -600,7 +621,7 @@ std::vector<double> Autoencoder::estimate_fit_seconds(const std::vector<std::siz
   auto seconds_per_row_epoch = [&](int loop) {
     Hyper probe = hyper_;
     probe.threads = 1;  // core-seconds
-    probe.max_epochs = kProbeEpochs;
+    probe.max_epochs = epochs;
     // The fastest of a few probes (at least 0.2 s in all): an idle machine's time, without the
     // scheduler's noise on a probe of a few milliseconds.
     double best = std::numeric_limits<double>::infinity(), spent = 0.0;
@@ -615,12 +636,7 @@ std::vector<double> Autoencoder::estimate_fit_seconds(const std::vector<std::siz
     return best;
   };
   const double first = seconds_per_row_epoch(0);
-  const double later = hyper_.random_split ? first : seconds_per_row_epoch(1);
-  for (std::size_t loop = 0; loop < rows.size(); ++loop) {
-    const int epochs = expected_epochs(hyper_, static_cast<int>(loop));
-    seconds[loop] = epochs * (loop == 0 ? first : later) * static_cast<double>(rows[loop]);
-  }
-  return seconds;
+  return {first, hyper_.random_split ? first : seconds_per_row_epoch(1)};
 }
 
 }  // namespace qd::autoencoder

@@ -12,7 +12,10 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
+#include <mutex>
 #include <string>
+#include <tuple>
 
 namespace qd::pca {
 
@@ -174,7 +177,17 @@ std::vector<double> PcaRepresentation::estimate_fit_seconds(const std::vector<st
   };
   const std::size_t lo = std::max<std::size_t>(1, *std::min_element(rows.begin(), rows.end()));
   const std::size_t hi = std::max(lo, *std::max_element(rows.begin(), rows.end()));
-  const double t_lo = time_fit(lo), t_hi = hi == lo ? t_lo : time_fit(hi);
+  // A sweep asks once per run, mostly about the same sizes: each is timed once per process.
+  static std::mutex cache_mutex;
+  static std::map<std::tuple<std::size_t, int, std::size_t>, double> cache;
+  auto timed = [&](std::size_t n) {
+    const std::lock_guard<std::mutex> lock(cache_mutex);
+    const auto key = std::make_tuple(params_, latent_, n);
+    auto it = cache.find(key);
+    if (it == cache.end()) it = cache.emplace(key, time_fit(n)).first;
+    return it->second;
+  };
+  const double t_lo = timed(lo), t_hi = hi == lo ? t_lo : timed(hi);
   const double exponent =
       hi == lo || t_lo <= 0 || t_hi <= 0 ? 1.0 : std::log(t_hi / t_lo) / std::log(static_cast<double>(hi) / lo);
   for (std::size_t l = 0; l < rows.size(); ++l)
