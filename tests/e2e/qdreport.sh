@@ -31,6 +31,13 @@ grep -q '^- report command: `share/qdreport --environments striker .* -o REPORT_
 grep -q "^\*\*Autoencoder epochs capped at 5 per loop\*\*" "$report"  # the caption of the tables it affects
 grep -q "^| PoMS | 3/3 | .* | \*\*capped at 5\*\* |$" "$report"
 grep -q "^| MAPE-Iso | 3/3 | .* | - |$" "$report"
+# Unfinished runs (a sweep still going): their row says so and how far they got; no NaN anywhere.
+for s in 1 2 3; do echo running > "$out/runs/striker-ps-uniform/seed-$s/status"; done
+/usr/bin/python3 "$src/share/qdreport" --no-run --environments striker --algorithms poms,iso,ps-uniform \
+  --seeds 1,2,3 --loops 2 -o "$out" --qdrun "$qdrun" > "$out.log" 2>&1 || { cat "$out.log"; exit 1; }
+grep -q "^| ps-uniform | 0/3 | [0-9]* so far | none complete | | | | | - |$" "$report" \
+  || { grep "^| ps-uniform |" "$report"; exit 1; }
+! grep -qi "nan" "$report" || { grep -i "nan" "$report"; exit 1; }
 
 # No epoch cap by default, and the Walker's coverage both ways: % of its 12 500 cells and of 50 000.
 w=$out-walker
