@@ -3,7 +3,7 @@
 # holds the runs' final elites (median over 3 seeds = the middle archive size).
 source "$(dirname "$0")/lib.sh"
 qdrun=$1 src=$2 out=$3
-rm -rf "$out" "$out-dry"
+rm -rf "$out" "$out-dry" "$out.estimate"
 # --dry-run: the plan and its estimate, nothing written.
 /usr/bin/python3 "$src/share/qdreport" --environments striker --algorithms iso --seeds 1 --loops 2 \
   -o "$out-dry" --qdrun "$qdrun" --dry-run > "$out.log" 2>&1 || { cat "$out.log"; exit 1; }
@@ -30,14 +30,71 @@ grep -q '^- report command: `share/qdreport --environments striker .* -o REPORT_
 [ -s "$out/figures/coverage-striker.png" ] && [ -s "$out/figures/map-striker-poms.png" ]
 grep -q "^\*\*Autoencoder epochs capped at 5 per loop\*\*" "$report"  # the caption of the tables it affects
 grep -q "^| PoMS | 3/3 | .* | \*\*capped at 5\*\* |$" "$report"
-grep -q "^| MAPE-Iso | 3/3 | .* | - |$" "$report"
+grep -q "^| MAPE-Iso | 3/3 | .* | - | - |$" "$report"  # no mixing ratio, no autoencoder
+# The mixing ratio column: the median over seeds of each run's mean over its last loop.
+mixing=$(/usr/bin/python3 - "$out/runs/striker-poms" <<'PY'
+import csv, sys
+means = []
+for s in (1, 2, 3):
+    rows = list(csv.DictReader(open(f"{sys.argv[1]}/seed-{s}/metrics.csv")))
+    last = [float(r["mixing_ratio"]) for r in rows if r["loop"] == rows[-1]["loop"]]
+    means.append(sum(last) / len(last))
+print(f"{sorted(means)[1]:.2f}")
+PY
+)
+grep -q "^| PoMS | 3/3 | .* | $mixing | \*\*capped at 5\*\* |$" "$report" \
+  || { echo "PoMS: mixing ratio $mixing not in the table"; grep "^| PoMS |" "$report"; exit 1; }
+# The cost: the dry-run's estimate saved before the first run, the invocation logged, both in the report.
+grep -q "^sweep: estimated [0-9.]* core-hours" "$out/estimate.txt"
+grep -Eq "^  striker-poms/seed-2 +[0-9.]+ core-h: " "$out/estimate.txt"
+[ "$(wc -l < "$out/invocations.csv")" -eq 2 ] && tail -n 1 "$out/invocations.csv" | grep -Eq "^[0-9T:-]+Z,[0-9.]+,0,9 runs: 9 finished" \
+  || { cat "$out/invocations.csv"; exit 1; }
+grep -q "^## Cost: the estimate against the measured time" "$report"
+for name in PoMS MAPE-Iso ps-uniform; do
+  grep -Eq "^\| striker \| $name \| 3 \| [0-9.]+ \| [0-9.]+ \| ([0-9.]+|n/a) \|$" "$report" \
+    || { echo "no cost row for $name"; sed -n '/## Cost/,$p' "$report"; exit 1; }
+done
+grep -q "^All 9 compared runs: estimate" "$report"
+grep -q "^The sweep ran in 1 invocation of qdreport, [0-9.]* h of wall time in all (ratio to the estimate" "$report"
+# Run again: every run is complete; the estimate stays the first one, the invocation is added.
+cp "$out/estimate.txt" "$out.estimate"
+/usr/bin/python3 "$src/share/qdreport" --environments striker --algorithms poms,iso,ps-uniform --seeds 1,2,3 \
+  --loops 2 --set experiment.iterations=2 --max-epochs 5 -o "$out" --qdrun "$qdrun" > "$out.log" 2>&1 \
+  || { cat "$out.log"; exit 1; }
+cmp "$out.estimate" "$out/estimate.txt"
+[ "$(wc -l < "$out/invocations.csv")" -eq 3 ] && tail -n 1 "$out/invocations.csv" | grep -q ",0,9 runs: 0 finished; 9 skipped" \
+  || { cat "$out/invocations.csv"; exit 1; }
+grep -q "^The sweep ran in 2 invocations of qdreport" "$report"
 # Unfinished runs (a sweep still going): their row says so and how far they got; no NaN anywhere.
 for s in 1 2 3; do echo running > "$out/runs/striker-ps-uniform/seed-$s/status"; done
 /usr/bin/python3 "$src/share/qdreport" --no-run --environments striker --algorithms poms,iso,ps-uniform \
   --seeds 1,2,3 --loops 2 -o "$out" --qdrun "$qdrun" > "$out.log" 2>&1 || { cat "$out.log"; exit 1; }
-grep -q "^| ps-uniform | 0/3 | [0-9]* so far | none complete | | | | | - |$" "$report" \
+grep -q "^| ps-uniform | 0/3 | [0-9]* so far | none complete | | | | | | - |$" "$report" \
   || { grep "^| ps-uniform |" "$report"; exit 1; }
 ! grep -qi "nan" "$report" || { grep -i "nan" "$report"; exit 1; }
+
+# An invocation that is stopped (SIGTERM, as when a session ends) logs its time and stops its runs;
+# the same command then resumes them.
+t=$out-term
+rm -rf "$t"
+term_cmd=(/usr/bin/python3 "$src/share/qdreport" --environments striker --algorithms iso --seeds 1 --loops 40
+          --set experiment.iterations=2 -o "$t" --qdrun "$qdrun")
+"${term_cmd[@]}" > "$t.log" 2>&1 &
+pid=$!
+for _ in $(seq 600); do
+  [ "$(wc -l 2>/dev/null < "$t/runs/striker-iso/seed-1/metrics.csv" || echo 0)" -ge 4 ] && break
+  sleep 0.1
+done
+grep -q ",,running," "$t/invocations.csv" || { cat "$t/invocations.csv"; exit 1; }
+kill -TERM "$pid"
+rc=0; wait "$pid" || rc=$?
+[ "$rc" -eq 143 ] || { echo "qdreport exited with $rc after SIGTERM"; cat "$t.log"; exit 1; }
+grep -Eq "^[0-9T:-]+Z,[0-9.]+,interrupted," "$t/invocations.csv" || { cat "$t/invocations.csv"; exit 1; }
+! pgrep -f -- "--output $t/runs" > /dev/null || { echo "runs of the stopped sweep still running"; exit 1; }
+grep -vq "^complete" "$t/runs/striker-iso/seed-1/status"
+"${term_cmd[@]}" > "$t.log" 2>&1 || { cat "$t.log"; exit 1; }
+grep -q "^complete" "$t/runs/striker-iso/seed-1/status"
+grep -q "^The sweep ran in 2 invocations of qdreport, [0-9.]* h of wall time in all" "$t/REPORT.md"
 
 # No epoch cap by default, and the Walker's coverage both ways: % of its 12 500 cells and of 50 000.
 w=$out-walker
