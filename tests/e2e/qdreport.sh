@@ -47,6 +47,7 @@ grep -q "^| PoMS | 3/3 | .* | $mixing | \*\*capped at 5\*\* |$" "$report" \
 # The cost: the dry-run's estimate saved before the first run, the invocation logged, both in the report.
 grep -q "^sweep: estimated [0-9.]* core-hours" "$out/estimate.txt"
 grep -Eq "^  striker-poms/seed-2 +[0-9.]+ core-h: " "$out/estimate.txt"
+! grep -qF "$out" "$out/estimate.txt" || { echo "estimate.txt holds this machine's paths"; cat "$out/estimate.txt"; exit 1; }
 [ "$(wc -l < "$out/invocations.csv")" -eq 2 ] && tail -n 1 "$out/invocations.csv" | grep -Eq "^[0-9T:-]+Z,[0-9.]+,0,9 runs: 9 finished" \
   || { cat "$out/invocations.csv"; exit 1; }
 grep -q "^## Cost: the estimate against the measured time" "$report"
