@@ -17,6 +17,7 @@ grep -q "^sweep: estimated" "$out.log"
 report=$out/REPORT.md
 grep -q "capped at 5 per loop" "$report"
 grep -q "^- note: a test note$" "$report"
+grep -q "^- runs made on: .*, .* (9 runs)$" "$report"  # CPU and instruction set, from the runs' provenance
 for alg in poms iso ps-uniform; do
   sizes=$(for s in 1 2 3; do echo $(($(wc -l < "$out/runs/striker-$alg/seed-$s/archive.csv") - 1)); done | sort -n)
   median=$(sed -n 2p <<< "$sizes")
