@@ -202,6 +202,19 @@ TEST(AutoencoderTraining, ResultsDoNotDependOnThreadCount) {
   EXPECT_EQ(weights[0], weights[2]);
 }
 
+// Eigen's products block the summed dimension by the L1 size: if it came from the CPU (CPUID), two
+// machines with the same instruction set would train different weights (they did: 48 KiB vs 32 KiB
+// L1d). The core makes everything that links it use Eigen's fixed default instead.
+TEST(AutoencoderTraining, ProductBlockingIgnoresTheMachinesCaches) {
+#ifndef EIGEN_NO_CPUID
+  FAIL() << "EIGEN_NO_CPUID is not defined: qd::core's compile definitions did not reach this target";
+#endif
+#if defined(__x86_64__)
+  EXPECT_EQ(Eigen::l1CacheSize(), 32 * 1024);
+  EXPECT_EQ(Eigen::l2CacheSize(), 256 * 1024);
+#endif
+}
+
 TEST(AutoencoderState, SaveLoadIsBitExactAndChecksShape) {
   const int P = 25;
   for (bool float64 : {false, true}) {
