@@ -37,6 +37,8 @@ for file in half_step.cpp half_step_test.cpp; do  # the plugin, and its test (qd
   grep -qE -- ' -O[23s]? ' <<< "$cmd" || fail "$file was compiled without optimisation: $cmd"
   # QD_ARCH_FLAGS is a CMake list (-march=x86-64-v4;-mtune=generic): one flag per element.
   for flag in ${arch//;/ }; do grep -q -- " $flag " <<< "$cmd" || fail "$file was compiled without the core's $flag: $cmd"; done
+  # Eigen's product blocking must not depend on the CPU's caches in third-party plugins either.
+  grep -q -- " -DEIGEN_NO_CPUID " <<< "$cmd" || fail "$file was compiled without EIGEN_NO_CPUID: $cmd"
 done
 cmake -S "$src/example" -B "$work/example-debug" -G Ninja -DCMAKE_PREFIX_PATH="$work/prefix" \
       -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF -DCMAKE_EXPORT_COMPILE_COMMANDS=ON -DCMAKE_BUILD_TYPE=Debug "${consumer_flags[@]}" \
