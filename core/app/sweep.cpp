@@ -354,6 +354,28 @@ std::string hours(double seconds) {
   return buf;
 }
 
+// What a resumed run's completed loops cost it per evaluation, in core-seconds: its metrics.csv
+// (wall time, training out) times the workers its provenance.toml records.
+struct MeasuredCost {
+  double core_seconds_per_evaluation = 0.0;  // 0: nothing to go on
+  int loop = -1;
+  int workers = 1;
+};
+
+MeasuredCost measured_cost(const fs::path& dir, int iterations) {
+  std::ifstream metrics(dir / "metrics.csv");
+  const runtime::MeasuredRate rate = runtime::measured_rate(metrics, iterations);
+  MeasuredCost out;
+  if (rate.loop < 1) return out;
+  std::ifstream provenance(dir / "provenance.toml");
+  for (std::string line; std::getline(provenance, line);)
+    if (std::sscanf(line.c_str(), "workers = %d", &out.workers) == 1) break;
+  out.workers = std::max(out.workers, 1);
+  out.loop = rate.loop;
+  out.core_seconds_per_evaluation = rate.seconds_per_evaluation * out.workers;
+  return out;
+}
+
 // --dry-run's estimate: per run and in total, in core-hours, and the sweep's wall time on this
 // machine. Pilots run loop 0 of each distinct environment setup once (the first seed's).
 void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& runs,
@@ -361,7 +383,9 @@ void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& r
                          int hw) {
   std::map<std::string, runtime::EpisodePilot> pilots;
   double episodes = 0, training = 0;
-  std::printf("estimate (one core per run; episodes from a pilot of loop 0, training timed by the representation):\n");
+  std::printf(
+      "estimate (one core per run; episodes from a pilot of loop 0 and of its offspring, or from a resumed run's "
+      "own loops; training timed by the representation):\n");
   for (std::size_t i : pending) {
     const PlannedRun& r = runs[i];
     Document doc = read_run_document(o, r.file, r.seed, r.overrides);
@@ -379,14 +403,33 @@ void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& r
       throw runtime::WorkerFailure(std::string(fault.what()) + " (in the --dry-run estimate of " + r.label + ")");
     }
     const runtime::EpisodePilot& p = it->second;
+    // A resumed run that has completed a loop past 0 is priced at its own measured rate.
+    const MeasuredCost measured = r.first_loop > 1 ? measured_cost(r.dir, ex.settings.iterations) : MeasuredCost{};
+    if (measured.core_seconds_per_evaluation > 0)
+      e.episode_seconds = measured.core_seconds_per_evaluation * static_cast<double>(e.evaluations);
     episodes += e.episode_seconds;
     training += e.training_seconds;
-    std::printf(
-        "  %-44s %8s core-h: %lld evaluations %s h, training %s h (loop 0: %.2f ms/episode, %.0f of %d steps, "
-        "|D| %zu)\n",
-        r.label.c_str(), hours(e.total_seconds()).c_str(), e.evaluations, hours(e.episode_seconds).c_str(),
-        hours(e.training_seconds).c_str(), 1e3 * p.seconds / std::max<std::size_t>(p.episodes, 1), p.mean_steps,
-        p.max_steps, p.loop0_archive);
+    // The offspring's time prices this run's episodes only if it breeds from elites.
+    char offspring[96] = "";
+    if (c.mutator->uses_parents())
+      std::snprintf(offspring, sizeof offspring, "; offspring: %.2f ms/episode, %.0f steps",
+                    1e3 * p.offspring_seconds_per_episode(), p.offspring_mean_steps);
+    if (measured.core_seconds_per_evaluation > 0) {
+      std::printf(
+          "  %-44s %8s core-h: %lld evaluations %s h, training %s h (measured in its loop %d: %.2f ms/evaluation "
+          "x %d worker%s)\n",
+          r.label.c_str(), hours(e.total_seconds()).c_str(), e.evaluations, hours(e.episode_seconds).c_str(),
+          hours(e.training_seconds).c_str(), measured.loop,
+          1e3 * measured.core_seconds_per_evaluation / measured.workers, measured.workers,
+          measured.workers == 1 ? "" : "s");
+    } else {
+      std::printf(
+          "  %-44s %8s core-h: %lld evaluations %s h, training %s h (loop 0: %.2f ms/episode, %.0f of %d steps, "
+          "|D| %zu%s)\n",
+          r.label.c_str(), hours(e.total_seconds()).c_str(), e.evaluations, hours(e.episode_seconds).c_str(),
+          hours(e.training_seconds).c_str(), 1e3 * p.seconds_per_episode(), p.mean_steps, p.max_steps, p.loop0_archive,
+          offspring);
+    }
     std::fflush(stdout);
   }
   const int cores = std::max(1, std::min(hw, concurrent * workers));

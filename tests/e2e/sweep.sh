@@ -21,14 +21,15 @@ same_results "$out-single/smoke-iso/seed-1" "$out/smoke-iso/seed-1"
 "$qdrun" "$smoke/iso.toml" --seeds 1,2 -o "$out" --set experiment.loops=4 | grep -q "2 runs: 2 finished"
 grep -q "loops = 4" "$out/smoke-iso/seed-1/config.toml"
 # --dry-run estimates what is left to do: 6 loops of iso (600 evaluations) where 4 are done leave
-# 200 per run; a fresh directory needs all 600. The total line sums the runs.
+# 200 per run, priced at what the runs' own loop 3 cost; a fresh directory needs all 600, priced
+# from the pilot of loop 0 and its offspring. The total line sums the runs.
 "$qdrun" "$smoke/iso.toml" --seeds 1,2 -o "$out" --evaluations 600 --dry-run > "$log"
 cat "$log"
-grep -Eq "^  smoke-iso/seed-1 +[0-9.]+ core-h: 200 evaluations" "$log"
-grep -Eq "^  smoke-iso/seed-2 +[0-9.]+ core-h: 200 evaluations" "$log"
+grep -Eq "^  smoke-iso/seed-1 +[0-9.]+ core-h: 200 evaluations .*\(measured in its loop 3: [0-9.]+ ms/evaluation x [0-9]+ workers?\)$" "$log"
+grep -Eq "^  smoke-iso/seed-2 +[0-9.]+ core-h: 200 evaluations .*\(measured in its loop 3: " "$log"
 grep -Eq "^sweep: estimated [0-9.]+ core-hours \(episodes [0-9.]+, training [0-9.]+\); on this machine" "$log"
 "$qdrun" "$smoke/iso.toml" --seeds 1 -o "$out-dry" --evaluations 600 --dry-run > "$log"
-grep -Eq "^  smoke-iso/seed-1 +[0-9.]+ core-h: 600 evaluations" "$log"
+grep -Eq "^  smoke-iso/seed-1 +[0-9.]+ core-h: 600 evaluations .*\(loop 0: [0-9.]+ ms/episode, .*; offspring: [0-9.]+ ms/episode, [0-9]+ steps\)$" "$log"
 [ ! -e "$out-dry" ] || { echo "--dry-run created $out-dry"; exit 1; }
 # A run that fails (an unreadable checkpoint) is named, the others still run.
 printf 'garbage' > "$out/smoke-poms/seed-1/checkpoint.bin"

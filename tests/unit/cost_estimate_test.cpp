@@ -1,6 +1,6 @@
 // qdrun --dry-run's cost model (runtime/cost_estimate.hpp) against hand-computed values: a scripted
-// environment whose episodes take θ1 steps in cell θ0, and a representation whose "measured" fit
-// time is a known function of the rows it is asked about.
+// environment whose episodes take θ1 steps (truncated) in cell θ0 (truncated), and a representation
+// whose "measured" fit time is a known function of the rows it is asked about.
 #include "runtime/cost_estimate.hpp"
 
 #include <qd/errors.hpp>
@@ -9,7 +9,9 @@
 
 #include <cmath>
 #include <deque>
+#include <sstream>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 using namespace qd;
@@ -115,7 +117,8 @@ struct World {
     c.representation = std::move(m);
     c.representation_label = "representation 'timed' (test)";
     auto sampler = own<RowsSampler>(false);
-    sampler->rows = {{1, 2}, {1, 4}, {2, 6}, {3, 8}, {3, 10}, {3, 12}};
+    // The first policy to reach a cell is its elite: each of cells 1, 2, 3 gets a 6-step one.
+    sampler->rows = {{1, 6}, {1, 4}, {2, 6}, {3, 6}, {3, 10}, {3, 12}};
     c.initial = std::move(sampler);
     c.mutator = own<RowsSampler>(parents);
   }
@@ -124,8 +127,8 @@ struct World {
   TimedModel* model = nullptr;
 };
 
-// A pilot of known numbers: 100 episodes of 10 steps in 2 s (2 ms per step), episodes up to 30
-// steps, 6 cells after loop 0.
+// A pilot of known numbers: 100 loop-0 episodes in 2 s (20 ms each), 50 offspring in 3 s (60 ms
+// each), 6 cells after loop 0.
 EpisodePilot known_pilot() {
   EpisodePilot p;
   p.episodes = 100;
@@ -133,6 +136,9 @@ EpisodePilot known_pilot() {
   p.mean_steps = 10;
   p.max_steps = kMaxSteps;
   p.loop0_archive = 6;
+  p.offspring_episodes = 50;
+  p.offspring_seconds = 3.0;
+  p.offspring_mean_steps = 25;
   return p;
 }
 
@@ -140,26 +146,48 @@ TEST(CostEstimate, PilotRunsLoopZeroAndCountsStepsAndCells) {
   World w(true, 0);
   const EpisodePilot p = run_episode_pilot(w.s, w.c);
   EXPECT_EQ(p.episodes, 6u);
-  EXPECT_DOUBLE_EQ(p.mean_steps, 7.0);  // (2 + 4 + 6 + 8 + 10 + 12) / 6
+  EXPECT_DOUBLE_EQ(p.mean_steps, 44.0 / 6);  // (6 + 4 + 6 + 6 + 10 + 12) / 6
   EXPECT_EQ(p.max_steps, kMaxSteps);
   EXPECT_EQ(p.loop0_archive, 3u);  // cells 1, 2, 3
   EXPECT_GE(p.seconds, 0.0);
 }
 
-TEST(CostEstimate, MutationEpisodesLengthenTowardsTheCap) {
+TEST(CostEstimate, PilotOffspringAreTheElitesBredOnce) {
+  World w(true, 0);
+  // Without a step, every offspring is a copy of an elite: 6 steps each, whichever were drawn.
+  const EpisodePilot copies = run_episode_pilot(w.s, w.c, 0.0);
+  EXPECT_EQ(copies.offspring_episodes, 6u);  // as many as loop 0's samples
+  EXPECT_DOUBLE_EQ(copies.offspring_mean_steps, 6.0);
+  EXPECT_GE(copies.offspring_seconds, 0.0);
+  // With the default step, theta1 = 6 + 0.1 N(0, 1) truncates to 5 for every negative draw.
+  const EpisodePilot bred = run_episode_pilot(w.s, w.c);
+  EXPECT_EQ(bred.offspring_episodes, 6u);
+  EXPECT_GE(bred.offspring_mean_steps, 5.0);
+  EXPECT_LT(bred.offspring_mean_steps, 6.0);  // seed 3 draws at least one negative
+}
+
+TEST(CostEstimate, MutationEpisodesCostWhatThePilotsOffspringCost) {
   World w(true, 0);
   const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
-  const double later = 10 + kEpisodeGrowth * (kMaxSteps - 10);
   EXPECT_EQ(e.evaluations, 6 + 2 * 2 * 5);
-  EXPECT_DOUBLE_EQ(e.episode_seconds, 6 * 10 * 2e-3 + 20 * later * 2e-3);
+  EXPECT_DOUBLE_EQ(e.episode_seconds, 6 * 0.020 + 20 * 0.060);
   EXPECT_EQ(e.training_seconds, 0.0);  // no latent space: the model is not asked
   EXPECT_TRUE(w.model->asked.empty());
 }
 
-TEST(CostEstimate, SamplerEpisodesStayAtLoopZeroLength) {
+TEST(CostEstimate, SamplerEpisodesCostWhatLoopZerosCost) {
   World w(false, 0);
   const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
-  EXPECT_DOUBLE_EQ(e.episode_seconds, 26 * 10 * 2e-3);
+  EXPECT_DOUBLE_EQ(e.episode_seconds, 26 * 0.020);
+}
+
+TEST(CostEstimate, WithoutElitesOffspringArePricedAsLoopZero) {
+  EpisodePilot p = known_pilot();
+  p.offspring_episodes = 0;
+  p.offspring_seconds = 0.0;
+  World w(true, 0);
+  EXPECT_DOUBLE_EQ(p.offspring_seconds_per_episode(), 0.020);
+  EXPECT_DOUBLE_EQ(estimate_run_cost(w.s, w.c, p).episode_seconds, 26 * 0.020);
 }
 
 TEST(CostEstimate, TrainingAddsTheModelsTimeForTheExpectedDatasetSizes) {
@@ -183,9 +211,8 @@ TEST(CostEstimate, DatasetNeverOutgrowsTheGrid) {
 TEST(CostEstimate, AResumedRunCountsOnlyTheLoopsLeft) {
   World w(true, 1);
   const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot(), 2);
-  const double later = 10 + kEpisodeGrowth * (kMaxSteps - 10);
   EXPECT_EQ(e.evaluations, 10);
-  EXPECT_DOUBLE_EQ(e.episode_seconds, 10 * later * 2e-3);
+  EXPECT_DOUBLE_EQ(e.episode_seconds, 10 * 0.060);
   EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * static_cast<double>(expected_dataset_rows(known_pilot(), kCells, 2)));
 }
 
@@ -201,6 +228,51 @@ TEST(CostEstimate, AModelsBrokenEstimateEndsTheDryRunNamingIt) {
       EXPECT_NE(what.find("estimate_fit_seconds()"), std::string::npos) << what;
     }
   }
+}
+
+}  // namespace
+
+namespace {
+
+// metrics.csv as run.cpp writes it: cumulative wall and training seconds per iteration row.
+constexpr const char* kMetricsHeader =
+    "loop,iteration,evaluations,elites,coverage,mixing_ratio,added,replaced,invalid,wall_seconds,train_seconds\n";
+
+std::string metrics_row(int loop, int it, int evaluations, double wall, double train) {
+  return std::to_string(loop) + "," + std::to_string(it) + "," + std::to_string(evaluations) + ",1,0.1,,1,0,0," +
+         std::to_string(wall) + "," + std::to_string(train) + "\n";
+}
+
+TEST(CostEstimate, AResumedRunIsPricedAtItsLastCompleteLoopsMedianRate) {
+  std::string csv = kMetricsHeader;
+  csv += metrics_row(0, 0, 10, 1.0, 0.0);
+  // Loop 1: 0.1 s per evaluation (the first row also carries loop 0's 10 s fit).
+  csv += metrics_row(1, 0, 20, 12.0, 10.0);
+  csv += metrics_row(1, 1, 30, 13.0, 10.0);
+  csv += metrics_row(1, 2, 40, 14.0, 10.0);
+  // Loop 2: 0.2, then a 5 s pause, then 0.2 s per evaluation; its median is 0.2.
+  csv += metrics_row(2, 0, 50, 26.0, 20.0);
+  csv += metrics_row(2, 1, 60, 31.0, 20.0);
+  csv += metrics_row(2, 2, 70, 33.0, 20.0);
+  // Loop 3 stopped after one iteration: not complete, not used.
+  csv += metrics_row(3, 0, 80, 53.0, 30.0);
+  std::istringstream in(csv);
+  const MeasuredRate rate = measured_rate(in, 3);
+  EXPECT_EQ(rate.loop, 2);
+  EXPECT_NEAR(rate.seconds_per_evaluation, 0.2, 1e-12);
+}
+
+TEST(CostEstimate, WithoutACompleteLoopPastZeroThereIsNoMeasuredRate) {
+  std::string csv = kMetricsHeader;
+  csv += metrics_row(0, 0, 10, 1.0, 0.0);
+  csv += metrics_row(1, 0, 20, 12.0, 10.0);
+  std::istringstream in(csv);
+  EXPECT_EQ(measured_rate(in, 3).loop, -1);
+  EXPECT_EQ(measured_rate(in, 3).seconds_per_evaluation, 0.0);
+  std::istringstream other("loop,iteration,evaluations\n0,0,10\n1,0,20\n1,1,30\n");  // no times
+  EXPECT_EQ(measured_rate(other, 2).loop, -1);
+  std::istringstream empty("");
+  EXPECT_EQ(measured_rate(empty, 2).loop, -1);
 }
 
 }  // namespace

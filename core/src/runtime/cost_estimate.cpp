@@ -7,11 +7,15 @@
 
 #include <qd/dataset.hpp>
 #include <qd/errors.hpp>
+#include <qd/rng.hpp>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <numeric>
+#include <sstream>
+#include <string>
 
 namespace qd::runtime {
 namespace {
@@ -52,7 +56,7 @@ class SilentObserver final : public LoopObserver {
 
 }  // namespace
 
-EpisodePilot run_episode_pilot(const ExperimentSettings& settings, Components& c) {
+EpisodePilot run_episode_pilot(const ExperimentSettings& settings, Components& c, double offspring_sigma) {
   TimedEvaluator evaluator(settings, c);
   Archive archive(c.grid.cells, c.shape.param_count(), c.grid.shape.size());
   Dataset dataset(c.shape.param_count());
@@ -66,7 +70,69 @@ EpisodePilot run_episode_pilot(const ExperimentSettings& settings, Components& c
   p.mean_steps = p.episodes > 0 ? evaluator.steps / static_cast<double>(p.episodes) : 0.0;
   p.max_steps = c.environment->info().max_steps;
   p.loop0_archive = archive.size();
+  if (archive.size() == 0) return p;
+
+  const auto n = static_cast<std::size_t>(settings.initial_samples);
+  Parents parents;
+  Rng selection(settings.seed, Stream::kSelection, 1, 0);
+  archive.select(n, selection, parents);
+  Matrix offspring = parents.theta;
+  Rng mutation(settings.seed, Stream::kMutation, 1, 0);
+  for (Eigen::Index r = 0; r < offspring.rows(); ++r)
+    for (Eigen::Index j = 0; j < offspring.cols(); ++j) offspring(r, j) += offspring_sigma * mutation.normal();
+  std::vector<std::uint64_t> seeds(n);
+  for (std::size_t k = 0; k < n; ++k) seeds[k] = Rng::derive_seed(settings.seed, Stream::kEpisode, 1, 0, k);
+  const double seconds = evaluator.seconds, steps = evaluator.steps;
+  Evaluations evaluated;
+  evaluator.evaluate(offspring, seeds, evaluated);
+  p.offspring_episodes = evaluator.episodes - p.episodes;
+  p.offspring_seconds = evaluator.seconds - seconds;
+  p.offspring_mean_steps =
+      p.offspring_episodes > 0 ? (evaluator.steps - steps) / static_cast<double>(p.offspring_episodes) : 0.0;
   return p;
+}
+
+MeasuredRate measured_rate(std::istream& in, int iterations) {
+  std::string line;
+  if (!std::getline(in, line)) return {};
+  std::vector<std::string> header;
+  {
+    std::stringstream ss(line);
+    for (std::string name; std::getline(ss, name, ',');) header.push_back(name);
+  }
+  auto column = [&](const char* name) {
+    const auto it = std::find(header.begin(), header.end(), name);
+    return it == header.end() ? -1 : static_cast<int>(it - header.begin());
+  };
+  const int c_loop = column("loop"), c_it = column("iteration"), c_eval = column("evaluations"),
+            c_wall = column("wall_seconds"), c_train = column("train_seconds");
+  if (std::min({c_loop, c_it, c_eval, c_wall, c_train}) < 0) return {};
+
+  std::map<int, std::vector<double>> per_loop;  // seconds per evaluation of each iteration
+  MeasuredRate out;
+  bool have_previous = false;
+  double previous_work = 0.0, previous_evaluations = 0.0;
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
+    if (static_cast<int>(cells.size()) < static_cast<int>(header.size()) - 1) continue;
+    auto number = [&](int c) { return c < static_cast<int>(cells.size()) ? std::atof(cells[c].c_str()) : 0.0; };
+    const int loop = std::atoi(cells[c_loop].c_str()), it = std::atoi(cells[c_it].c_str());
+    const double work = number(c_wall) - number(c_train), evaluations = number(c_eval);
+    if (have_previous && loop >= 1 && evaluations > previous_evaluations)
+      per_loop[loop].push_back((work - previous_work) / (evaluations - previous_evaluations));
+    if (loop >= 1 && it == iterations - 1) out.loop = std::max(out.loop, loop);
+    previous_work = work;
+    previous_evaluations = evaluations;
+    have_previous = true;
+  }
+  if (out.loop < 1) return {};
+  std::vector<double>& v = per_loop[out.loop];
+  if (v.empty()) return {};
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  out.seconds_per_evaluation = std::max(0.0, v[v.size() / 2]);
+  return out;
 }
 
 std::size_t expected_dataset_rows(const EpisodePilot& pilot, std::int64_t cells, int loop) {
@@ -76,16 +142,14 @@ std::size_t expected_dataset_rows(const EpisodePilot& pilot, std::int64_t cells,
 
 CostEstimate estimate_run_cost(const ExperimentSettings& s, Components& c, const EpisodePilot& pilot, int first_loop) {
   CostEstimate e;
-  const double per_step = pilot.seconds_per_step();
-  const double s0 = pilot.mean_steps;
-  const double later_steps =
-      c.mutator->uses_parents() ? s0 + kEpisodeGrowth * std::max(0.0, static_cast<double>(pilot.max_steps) - s0) : s0;
+  const double loop0_episode = pilot.seconds_per_episode();
+  const double later_episode = c.mutator->uses_parents() ? pilot.offspring_seconds_per_episode() : loop0_episode;
   std::vector<std::size_t> rows;
   for (int loop = 0; loop < s.loops; ++loop) {
     const long long n = loop == 0 ? s.initial_samples : static_cast<long long>(s.iterations) * s.batch;
     if (loop >= first_loop) {
       e.evaluations += n;
-      e.episode_seconds += static_cast<double>(n) * per_step * (loop == 0 ? s0 : later_steps);
+      e.episode_seconds += static_cast<double>(n) * (loop == 0 ? loop0_episode : later_episode);
     }
     rows.push_back(expected_dataset_rows(pilot, c.grid.cells, loop));
   }

@@ -1,13 +1,18 @@
 // What a run will cost before it starts (`qdrun --dry-run`): core-seconds of episodes and of
 // training, from a pilot of the run's own loop 0 and the representation's measured fit time.
 //
-// The model (docs/user-guide.md, "How long will it take"):
+// The model (docs/user-guide.md, "How long will it take"; checked in docs/performance.md, "Dry-run cost model"):
 //  * Episodes. The pilot runs loop 0 as the run would (same policies, same seeds), with one
-//    supervised worker process, and measures seconds per world step and the mean episode length s0. An episode costs
-//    its steps times that rate. Samplers (mutators without parents: ps-uniform, ps-glorot) keep drawing loop-0-like
-//    policies, so their episodes stay at s0. Mutation operators breed from elites that learn to stay alive, so their
-//    episodes lengthen; they are taken to average s0 + growth * (max_steps - s0) from loop 1 on, where `growth` is
-//    kEpisodeGrowth (fitted on full-length Walker, Kicker and Striker runs; documented there).
+//    supervised worker process, and times its episodes. Samplers (mutators without parents:
+//    ps-uniform, ps-glorot) keep drawing loop-0-like policies, so their episodes cost what loop 0's
+//    did. Mutation operators breed from elites, whose offspring can live longer or shorter than
+//    random policies depending on the environment; so the pilot then rolls out as many offspring
+//    of the loop-0 archive (uniform parents, theta + kPilotSigma N(0, I): the reference's MAPE-Iso
+//    operator, no model needed) and prices every episode from loop 1 on at their measured time.
+//    What it cannot see is a lengthening that builds up over many loops as the archive reaches
+//    cells only long episodes reach (the Walker's); docs/performance.md gives its size. A resumed
+//    run that has completed a loop past 0 is priced at its own measured rate instead
+//    (measured_rate), so re-running --dry-run on a sweep in progress tracks that lengthening.
 //  * Training. D holds the loop-0 archive after loop 0 (the pilot counts it), D0, and then about
 //    D0 (1 + kDatasetGrowth sqrt(loop)), up to the grid's size; the representation times its own
 //    fit on data of those sizes (Representation::estimate_fit_seconds).
@@ -17,28 +22,39 @@
 #include "runtime/experiment.hpp"
 
 #include <cstddef>
+#include <istream>
 #include <vector>
 
 namespace qd::runtime {
 
-// The fraction of the way from the loop-0 episode length to max_steps that the episodes of
-// mutation operators average from loop 1 on (docs/performance.md, "Dry-run cost model").
-inline constexpr double kEpisodeGrowth = 0.4;
+// The step size of the pilot's offspring, theta + kPilotSigma N(0, I) (the reference's MAPE-Iso).
+inline constexpr double kPilotSigma = 0.1;
 // |D| at loop l is about D0 (1 + kDatasetGrowth sqrt(l)) (fitted on Walker runs: 1.1 to 1.5).
 inline constexpr double kDatasetGrowth = 1.2;
 
 struct EpisodePilot {
   std::size_t episodes = 0;       // loop-0 policies rolled out
   double seconds = 0.0;           // their rollouts and descriptors, one worker
-  double mean_steps = 0.0;        // s0
+  double mean_steps = 0.0;        // their mean episode length
   int max_steps = 0;              // the environment's episode cap
   std::size_t loop0_archive = 0;  // distinct cells they reached: |D| after loop 0
-  double seconds_per_step() const { return mean_steps > 0 ? seconds / (mean_steps * episodes) : 0.0; }
+  // Offspring of the loop-0 archive, timed the same way.
+  std::size_t offspring_episodes = 0;
+  double offspring_seconds = 0.0;
+  double offspring_mean_steps = 0.0;
+
+  double seconds_per_episode() const { return episodes > 0 ? seconds / static_cast<double>(episodes) : 0.0; }
+  // Loop 0's time when there were no elites to breed from.
+  double offspring_seconds_per_episode() const {
+    return offspring_episodes > 0 ? offspring_seconds / static_cast<double>(offspring_episodes) : seconds_per_episode();
+  }
 };
 
 // Runs the experiment's loop 0 (initial sampler, episodes, descriptors, archive) with one worker
-// process, without the representation's fit. Throws what the run would throw.
-EpisodePilot run_episode_pilot(const ExperimentSettings& settings, Components& components);
+// process, without the representation's fit, then as many offspring of its archive (theta + sigma
+// N(0, I), uniform parents; seeded as the run's first iteration). Throws what the run would throw.
+EpisodePilot run_episode_pilot(const ExperimentSettings& settings, Components& components,
+                               double offspring_sigma = kPilotSigma);
 
 struct CostEstimate {
   double episode_seconds = 0.0;   // one core
@@ -51,6 +67,16 @@ struct CostEstimate {
 // Asks the representation to time its fits (a plugin call, checked).
 CostEstimate estimate_run_cost(const ExperimentSettings& settings, Components& components, const EpisodePilot& pilot,
                                int first_loop = 0);
+
+// A resumed run's own cost: the median wall seconds per evaluation (training taken out) over the
+// iterations of the last loop >= 1 that metrics.csv shows complete, and that loop; {0, -1} when
+// there is none. Episodes lengthen as an archive spreads (the Walker's do for many loops), which no
+// pilot of loop 0 can see; a run that has done a loop has measured it.
+struct MeasuredRate {
+  double seconds_per_evaluation = 0.0;
+  int loop = -1;
+};
+MeasuredRate measured_rate(std::istream& metrics_csv, int iterations);
 
 // The dataset size the model assumes at loop `loop`'s fit.
 std::size_t expected_dataset_rows(const EpisodePilot& pilot, std::int64_t cells, int loop);
