@@ -10,6 +10,8 @@
 
 #include <qd/errors.hpp>
 
+#include <toml++/toml.h>
+
 #include <fcntl.h>
 #include <sys/prctl.h>
 #include <sys/wait.h>
@@ -355,7 +357,7 @@ std::string hours(double seconds) {
 }
 
 // What a resumed run's completed loops cost it per evaluation, in core-seconds: its metrics.csv
-// (wall time, training out) times the workers its provenance.toml records.
+// (wall time, training out) times the workers of the session that ran the loop measured.
 struct MeasuredCost {
   double core_seconds_per_evaluation = 0.0;  // 0: nothing to go on
   int loop = -1;
@@ -367,10 +369,12 @@ MeasuredCost measured_cost(const fs::path& dir, int iterations) {
   const runtime::MeasuredRate rate = runtime::measured_rate(metrics, iterations);
   MeasuredCost out;
   if (rate.loop < 1) return out;
-  std::ifstream provenance(dir / "provenance.toml");
-  for (std::string line; std::getline(provenance, line);)
-    if (std::sscanf(line.c_str(), "workers = %d", &out.workers) == 1) break;
-  out.workers = std::max(out.workers, 1);
+  try {
+    const toml::table provenance = toml::parse_file(runtime::session_provenance(dir, rate.loop).string());
+    out.workers = std::max<int>(1, provenance["workers"].value_or(1));
+  } catch (const toml::parse_error&) {
+    // Unreadable provenance: one worker, the sweep's default.
+  }
   out.loop = rate.loop;
   out.core_seconds_per_evaluation = rate.seconds_per_evaluation * out.workers;
   return out;
@@ -395,41 +399,36 @@ void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& r
     const std::string key = pilot_key(ex.resolved_toml);
     auto it = pilots.find(key);
     runtime::CostEstimate e;
+    // A resumed run that has completed a loop past 0 is priced at its own measured rate.
+    const MeasuredCost measured = r.first_loop > 1 ? measured_cost(r.dir, ex.settings.iterations) : MeasuredCost{};
     try {
       if (it == pilots.end()) it = pilots.emplace(key, runtime::run_episode_pilot(ex.settings, c)).first;
-      e = runtime::estimate_run_cost(ex.settings, c, it->second, r.first_loop);
+      e = runtime::estimate_run_cost(ex.settings, c, it->second, r.first_loop, measured.core_seconds_per_evaluation);
     } catch (const PluginError& fault) {
       // Plugin code failed while running (the pilot's episodes, the model's timing): as in a run, exit 3.
       throw runtime::WorkerFailure(std::string(fault.what()) + " (in the --dry-run estimate of " + r.label + ")");
     }
     const runtime::EpisodePilot& p = it->second;
-    // A resumed run that has completed a loop past 0 is priced at its own measured rate.
-    const MeasuredCost measured = r.first_loop > 1 ? measured_cost(r.dir, ex.settings.iterations) : MeasuredCost{};
-    if (measured.core_seconds_per_evaluation > 0)
-      e.episode_seconds = measured.core_seconds_per_evaluation * static_cast<double>(e.evaluations);
     episodes += e.episode_seconds;
     training += e.training_seconds;
-    // The offspring's time prices this run's episodes only if it breeds from elites.
-    char offspring[96] = "";
-    if (c.mutator->uses_parents())
-      std::snprintf(offspring, sizeof offspring, "; offspring: %.2f ms/episode, %.0f steps",
+    // What priced the episodes: the run's own loops, or the pilot (whose offspring count only for
+    // a run that breeds from elites).
+    char basis[160];
+    if (measured.core_seconds_per_evaluation > 0)
+      std::snprintf(basis, sizeof basis, "measured in its loop %d: %.2f ms/evaluation x %d worker%s", measured.loop,
+                    1e3 * measured.core_seconds_per_evaluation / measured.workers, measured.workers,
+                    measured.workers == 1 ? "" : "s");
+    else if (c.mutator->uses_parents())
+      std::snprintf(basis, sizeof basis,
+                    "loop 0: %.2f ms/episode, %.0f of %d steps, |D| %zu; offspring: %.2f ms/episode, %.0f steps",
+                    1e3 * p.seconds_per_episode(), p.mean_steps, p.max_steps, p.loop0_archive,
                     1e3 * p.offspring_seconds_per_episode(), p.offspring_mean_steps);
-    if (measured.core_seconds_per_evaluation > 0) {
-      std::printf(
-          "  %-44s %8s core-h: %lld evaluations %s h, training %s h (measured in its loop %d: %.2f ms/evaluation "
-          "x %d worker%s)\n",
-          r.label.c_str(), hours(e.total_seconds()).c_str(), e.evaluations, hours(e.episode_seconds).c_str(),
-          hours(e.training_seconds).c_str(), measured.loop,
-          1e3 * measured.core_seconds_per_evaluation / measured.workers, measured.workers,
-          measured.workers == 1 ? "" : "s");
-    } else {
-      std::printf(
-          "  %-44s %8s core-h: %lld evaluations %s h, training %s h (loop 0: %.2f ms/episode, %.0f of %d steps, "
-          "|D| %zu%s)\n",
-          r.label.c_str(), hours(e.total_seconds()).c_str(), e.evaluations, hours(e.episode_seconds).c_str(),
-          hours(e.training_seconds).c_str(), 1e3 * p.seconds_per_episode(), p.mean_steps, p.max_steps, p.loop0_archive,
-          offspring);
-    }
+    else
+      std::snprintf(basis, sizeof basis, "loop 0: %.2f ms/episode, %.0f of %d steps, |D| %zu",
+                    1e3 * p.seconds_per_episode(), p.mean_steps, p.max_steps, p.loop0_archive);
+    std::printf("  %-44s %8s core-h: %lld evaluations %s h, training %s h (%s)\n", r.label.c_str(),
+                hours(e.total_seconds()).c_str(), e.evaluations, hours(e.episode_seconds).c_str(),
+                hours(e.training_seconds).c_str(), basis);
     std::fflush(stdout);
   }
   const int cores = std::max(1, std::min(hw, concurrent * workers));

@@ -2,13 +2,17 @@
 // environment whose episodes take θ1 steps (truncated) in cell θ0 (truncated), and a representation
 // whose "measured" fit time is a known function of the rows it is asked about.
 #include "runtime/cost_estimate.hpp"
+#include "runtime/run_directory.hpp"
 
 #include <qd/errors.hpp>
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <deque>
+#include <filesystem>
+#include <fstream>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -16,6 +20,7 @@
 
 using namespace qd;
 using namespace qd::runtime;
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -214,6 +219,26 @@ TEST(CostEstimate, AResumedRunCountsOnlyTheLoopsLeft) {
   EXPECT_EQ(e.evaluations, 10);
   EXPECT_DOUBLE_EQ(e.episode_seconds, 10 * 0.060);
   EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * static_cast<double>(expected_dataset_rows(known_pilot(), kCells, 2)));
+}
+
+TEST(CostEstimate, AResumedRunsOwnRatePricesItsEvaluationsInsteadOfThePilot) {
+  World w(true, 1);
+  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot(), 2, 0.5);
+  EXPECT_EQ(e.evaluations, 10);
+  EXPECT_DOUBLE_EQ(e.episode_seconds, 10 * 0.5);
+  EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * static_cast<double>(expected_dataset_rows(known_pilot(), kCells, 2)));
+}
+
+TEST(CostEstimate, TheMeasuredLoopsWorkersComeFromTheSessionThatRanIt) {
+  const fs::path dir = fs::temp_directory_path() / ("qd-session-provenance-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  for (const char* name : {"provenance.toml", "provenance-resume-loop-3.toml", "provenance-resume-loop-12.toml"})
+    std::ofstream(dir / name) << "workers = 1\n";
+  EXPECT_EQ(session_provenance(dir, 2).filename(), "provenance.toml");
+  EXPECT_EQ(session_provenance(dir, 3).filename(), "provenance-resume-loop-3.toml");
+  EXPECT_EQ(session_provenance(dir, 11).filename(), "provenance-resume-loop-3.toml");
+  EXPECT_EQ(session_provenance(dir, 1 << 30).filename(), "provenance-resume-loop-12.toml");
+  fs::remove_all(dir);
 }
 
 TEST(CostEstimate, AModelsBrokenEstimateEndsTheDryRunNamingIt) {

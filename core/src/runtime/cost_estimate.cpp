@@ -140,10 +140,14 @@ std::size_t expected_dataset_rows(const EpisodePilot& pilot, std::int64_t cells,
   return static_cast<std::size_t>(std::min(rows, static_cast<double>(std::max<std::int64_t>(cells, 0))));
 }
 
-CostEstimate estimate_run_cost(const ExperimentSettings& s, Components& c, const EpisodePilot& pilot, int first_loop) {
+CostEstimate estimate_run_cost(const ExperimentSettings& s, Components& c, const EpisodePilot& pilot, int first_loop,
+                               double measured_seconds_per_evaluation) {
   CostEstimate e;
-  const double loop0_episode = pilot.seconds_per_episode();
-  const double later_episode = c.mutator->uses_parents() ? pilot.offspring_seconds_per_episode() : loop0_episode;
+  const bool measured = measured_seconds_per_evaluation > 0;
+  const double loop0_episode = measured ? measured_seconds_per_evaluation : pilot.seconds_per_episode();
+  const double later_episode = measured                    ? measured_seconds_per_evaluation
+                               : c.mutator->uses_parents() ? pilot.offspring_seconds_per_episode()
+                                                           : loop0_episode;
   std::vector<std::size_t> rows;
   for (int loop = 0; loop < s.loops; ++loop) {
     const long long n = loop == 0 ? s.initial_samples : static_cast<long long>(s.iterations) * s.batch;

@@ -64,9 +64,10 @@ struct CostEstimate {
 };
 
 // Loops [first_loop, settings.loops) of the run: `first_loop` > 0 for a run that resumes.
-// Asks the representation to time its fits (a plugin call, checked).
+// `measured_seconds_per_evaluation` > 0 (a resumed run's own rate, measured_rate) prices its
+// evaluations instead of the pilot. Asks the representation to time its fits (a plugin call, checked).
 CostEstimate estimate_run_cost(const ExperimentSettings& settings, Components& components, const EpisodePilot& pilot,
-                               int first_loop = 0);
+                               int first_loop = 0, double measured_seconds_per_evaluation = 0.0);
 
 // A resumed run's own cost: the median wall seconds per evaluation (training taken out) over the
 // iterations of the last loop >= 1 that metrics.csv shows complete, and that loop; {0, -1} when

@@ -1,5 +1,7 @@
 #include "runtime/experiment.hpp"
 
+#include "runtime/run_directory.hpp"
+
 #include <qd/errors.hpp>
 
 #include <toml++/toml.h>
@@ -8,6 +10,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <optional>
 #include <sstream>
@@ -699,18 +702,9 @@ std::string describe_table(const std::string& name, const Registry& registry) {
 }
 
 std::string missing_plugin_hint(const fs::path& run_dir, const Registry& registry) {
-  // The newest session's provenance: provenance.toml, or provenance-resume-loop-L.toml with the
-  // highest L.
-  fs::path newest = run_dir / "provenance.toml";
-  int newest_loop = 0;
+  // The newest session's provenance names the plugins the run last loaded.
+  const fs::path newest = session_provenance(run_dir, std::numeric_limits<int>::max());
   std::error_code ec;
-  for (const auto& e : fs::directory_iterator(run_dir, ec)) {
-    const std::string f = e.path().filename().string();
-    const std::string prefix = "provenance-resume-loop-";
-    if (f.rfind(prefix, 0) != 0 || e.path().extension() != ".toml") continue;
-    const int loop = std::atoi(f.c_str() + prefix.size());
-    if (loop > newest_loop) newest_loop = loop, newest = e.path();
-  }
   toml::table prov;
   try {
     prov = toml::parse_file(newest.string());

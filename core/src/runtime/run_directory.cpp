@@ -7,6 +7,7 @@
 #include <unistd.h>
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 
@@ -91,6 +92,20 @@ void RunDirectory::write_config(const std::string& config) const {
 
 void RunDirectory::write(const std::string& name, const std::string& text) const {
   write_file_atomic(dir_ / name, text);
+}
+
+std::filesystem::path session_provenance(const std::filesystem::path& dir, int loop) {
+  std::filesystem::path found = dir / "provenance.toml";
+  int found_loop = 0;
+  std::error_code ec;
+  const std::string prefix = "provenance-resume-loop-";
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+    const std::string f = e.path().filename().string();
+    if (f.rfind(prefix, 0) != 0 || e.path().extension() != ".toml") continue;
+    const int l = std::atoi(f.c_str() + prefix.size());
+    if (l > found_loop && l <= loop) found_loop = l, found = e.path();
+  }
+  return found;
 }
 
 void RunDirectory::write_provenance(int first_loop, const std::string& text) const {

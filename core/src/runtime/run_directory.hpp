@@ -16,6 +16,11 @@
 
 namespace qd::runtime {
 
+// The provenance file of the session of `dir`'s run that ran loop `loop`: the
+// provenance-resume-loop-L.toml with the highest L <= loop, else provenance.toml (the first
+// session's). A large `loop` gives the newest session's.
+std::filesystem::path session_provenance(const std::filesystem::path& dir, int loop);
+
 class RunDirectory {
  public:
   explicit RunDirectory(std::filesystem::path dir);
