@@ -403,7 +403,8 @@ void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& r
     const MeasuredCost measured = r.first_loop > 1 ? measured_cost(r.dir, ex.settings.iterations) : MeasuredCost{};
     try {
       if (it == pilots.end()) it = pilots.emplace(key, runtime::run_episode_pilot(ex.settings, c)).first;
-      e = runtime::estimate_run_cost(ex.settings, c, it->second, r.first_loop, measured.core_seconds_per_evaluation);
+      e = runtime::estimate_run_cost(ex.settings, c, it->second, r.first_loop,
+                                     {measured.core_seconds_per_evaluation, measured.loop});
     } catch (const PluginError& fault) {
       // Plugin code failed while running (the pilot's episodes, the model's timing): as in a run, exit 3.
       throw runtime::WorkerFailure(std::string(fault.what()) + " (in the --dry-run estimate of " + r.label + ")");
@@ -412,17 +413,28 @@ void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& r
     episodes += e.episode_seconds;
     training += e.training_seconds;
     // What priced the episodes: the run's own loops, or the pilot (whose offspring count only for
-    // a run that breeds from elites).
-    char basis[160];
+    // a run that breeds from elites), and the lengthening [cost] adds to a breeding run's.
+    const runtime::CostModel& cost = ex.settings.cost;
+    const int last_loop = ex.settings.loops - 1;
+    char basis[256], growth[96] = "";
+    const int first = std::max(r.first_loop, 1);
+    if (c.mutator->uses_parents() && !cost.evaluations.empty() && first <= last_loop) {
+      auto factor = [&](int loop) {
+        return cost.offspring_time_at(runtime::loop_midpoint_evaluations(ex.settings, loop));
+      };
+      const double base = measured.core_seconds_per_evaluation > 0 ? factor(measured.loop) : 1.0;
+      std::snprintf(growth, sizeof growth, "; x%.2f to x%.2f by [cost] over loops %d-%d", factor(first) / base,
+                    factor(last_loop) / base, first, last_loop);
+    }
     if (measured.core_seconds_per_evaluation > 0)
-      std::snprintf(basis, sizeof basis, "measured in its loop %d: %.2f ms/evaluation x %d worker%s", measured.loop,
+      std::snprintf(basis, sizeof basis, "measured in its loop %d: %.2f ms/evaluation x %d worker%s%s", measured.loop,
                     1e3 * measured.core_seconds_per_evaluation / measured.workers, measured.workers,
-                    measured.workers == 1 ? "" : "s");
+                    measured.workers == 1 ? "" : "s", growth);
     else if (c.mutator->uses_parents())
       std::snprintf(basis, sizeof basis,
-                    "loop 0: %.2f ms/episode, %.0f of %d steps, |D| %zu; offspring: %.2f ms/episode, %.0f steps",
+                    "loop 0: %.2f ms/episode, %.0f of %d steps, |D| %zu; offspring: %.2f ms/episode, %.0f steps%s",
                     1e3 * p.seconds_per_episode(), p.mean_steps, p.max_steps, p.loop0_archive,
-                    1e3 * p.offspring_seconds_per_episode(), p.offspring_mean_steps);
+                    1e3 * p.offspring_seconds_per_episode(), p.offspring_mean_steps, growth);
     else
       std::snprintf(basis, sizeof basis, "loop 0: %.2f ms/episode, %.0f of %d steps, |D| %zu",
                     1e3 * p.seconds_per_episode(), p.mean_steps, p.max_steps, p.loop0_archive);

@@ -96,6 +96,31 @@ TEST(Config, ZeroAndNegativeBudgetsAreOutOfRange) {
             std::string::npos);
 }
 
+TEST(Config, TheCostTableIsReadButIsNotPartOfTheRunsConfiguration) {
+  const std::string cost = "\n[cost]\nevaluations = [0, 1000, 5000]\noffspring_time = [1.0, 1.5, 2.5]\n";
+  const Experiment with = resolve(Document::parse(kValid + cost, "exp.toml"), registry());
+  EXPECT_EQ(with.settings.cost.evaluations, (std::vector<double>{0, 1000, 5000}));
+  EXPECT_EQ(with.settings.cost.offspring_time, (std::vector<double>{1.0, 1.5, 2.5}));
+  // A run made before the table was added, or under other values, is the same run.
+  EXPECT_EQ(with.resolved_toml, resolve(Document::parse(kValid, "exp.toml"), registry()).resolved_toml);
+  EXPECT_TRUE(resolve(Document::parse(kValid, "exp.toml"), registry()).settings.cost.evaluations.empty());
+}
+
+TEST(Config, AMalformedCostTableNamesTheKey) {
+  const std::string lengths =
+      error_of(std::string(kValid) + "\n[cost]\nevaluations = [0, 1000]\noffspring_time = [1.0, 1.5, 2.5]\n");
+  EXPECT_NE(lengths.find("exp.toml:"), std::string::npos) << lengths;
+  EXPECT_NE(lengths.find("cost.offspring_time has 3 values for 2 cost.evaluations"), std::string::npos) << lengths;
+  const std::string order =
+      error_of(std::string(kValid) + "\n[cost]\nevaluations = [0, 1000, 1000]\noffspring_time = [1.0, 1.5, 2.5]\n");
+  EXPECT_NE(order.find("cost.evaluations must increase (entry 3 is not above entry 2)"), std::string::npos) << order;
+  EXPECT_NE(
+      error_of(std::string(kValid) + "\n[cost]\nevaluations = [0]\noffspring_time = [0.0]\n").find("out of range"),
+      std::string::npos);
+  const std::string typo = error_of(std::string(kValid) + "\n[cost]\noffspring_times = [1.0]\n");
+  EXPECT_NE(typo.find("unknown key 'offspring_times' in [cost]"), std::string::npos) << typo;
+}
+
 TEST(Config, UnknownComponentListsTheKnownOnes) {
   const std::string msg = error_of(replace(kValid, "type = \"iso\"", "type = \"isox\""));
   EXPECT_NE(msg.find("exp.toml:13:8"), std::string::npos) << msg;

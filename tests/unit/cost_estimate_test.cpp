@@ -223,10 +223,49 @@ TEST(CostEstimate, AResumedRunCountsOnlyTheLoopsLeft) {
 
 TEST(CostEstimate, AResumedRunsOwnRatePricesItsEvaluationsInsteadOfThePilot) {
   World w(true, 1);
-  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot(), 2, 0.5);
+  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot(), 2, {0.5, 1});
   EXPECT_EQ(e.evaluations, 10);
   EXPECT_DOUBLE_EQ(e.episode_seconds, 10 * 0.5);
   EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * static_cast<double>(expected_dataset_rows(known_pilot(), kCells, 2)));
+}
+
+TEST(CostEstimate, TheCostTableInterpolatesLinearlyAndHoldsItsEnds) {
+  CostModel m;
+  EXPECT_EQ(m.offspring_time_at(123.0), 1.0);  // no table: the pilot's offspring throughout
+  m.evaluations = {10, 30};
+  m.offspring_time = {2, 4};
+  EXPECT_DOUBLE_EQ(m.offspring_time_at(0), 2.0);
+  EXPECT_DOUBLE_EQ(m.offspring_time_at(10), 2.0);
+  EXPECT_DOUBLE_EQ(m.offspring_time_at(11), 2.1);
+  EXPECT_DOUBLE_EQ(m.offspring_time_at(20), 3.0);
+  EXPECT_DOUBLE_EQ(m.offspring_time_at(30), 4.0);
+  EXPECT_DOUBLE_EQ(m.offspring_time_at(1e9), 4.0);
+}
+
+// World: loop 0 is 6 evaluations, loops 1 and 2 are 10 each, so their middles are at 11 and 21.
+TEST(CostEstimate, TheCostTableLengthensABreedingRunsEpisodesAtEachLoopsMiddle) {
+  World w(true, 0);
+  EXPECT_DOUBLE_EQ(loop_midpoint_evaluations(w.s, 1), 11.0);
+  EXPECT_DOUBLE_EQ(loop_midpoint_evaluations(w.s, 2), 21.0);
+  w.s.cost.evaluations = {10, 30};
+  w.s.cost.offspring_time = {2, 4};
+  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
+  EXPECT_DOUBLE_EQ(e.episode_seconds, 6 * 0.020 + 10 * 0.060 * 2.1 + 10 * 0.060 * 3.1);
+
+  World sampler(false, 0);  // random search does not breed from elites: loop 0's time throughout
+  sampler.s.cost = w.s.cost;
+  EXPECT_DOUBLE_EQ(estimate_run_cost(sampler.s, sampler.c, known_pilot()).episode_seconds, 26 * 0.020);
+}
+
+TEST(CostEstimate, AResumedRunsOwnRateGrowsAsTheCostTableDoesFromItsMeasuredLoop) {
+  World w(true, 0);
+  w.s.cost.evaluations = {10, 30};
+  w.s.cost.offspring_time = {2, 4};
+  // Measured in loop 1 (factor 2.1): loop 2 (factor 3.1) costs 3.1 / 2.1 of it.
+  EXPECT_DOUBLE_EQ(estimate_run_cost(w.s, w.c, known_pilot(), 2, {0.5, 1}).episode_seconds, 10 * 0.5 * 3.1 / 2.1);
+  World sampler(false, 0);
+  sampler.s.cost = w.s.cost;
+  EXPECT_DOUBLE_EQ(estimate_run_cost(sampler.s, sampler.c, known_pilot(), 2, {0.5, 1}).episode_seconds, 10 * 0.5);
 }
 
 TEST(CostEstimate, TheMeasuredLoopsWorkersComeFromTheSessionThatRanIt) {

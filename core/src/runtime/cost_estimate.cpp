@@ -140,20 +140,33 @@ std::size_t expected_dataset_rows(const EpisodePilot& pilot, std::int64_t cells,
   return static_cast<std::size_t>(std::min(rows, static_cast<double>(std::max<std::int64_t>(cells, 0))));
 }
 
+double loop_midpoint_evaluations(const ExperimentSettings& s, int loop) {
+  const double per_loop = static_cast<double>(s.iterations) * s.batch;
+  return s.initial_samples + (loop - 1) * per_loop + per_loop / 2;
+}
+
 CostEstimate estimate_run_cost(const ExperimentSettings& s, Components& c, const EpisodePilot& pilot, int first_loop,
-                               double measured_seconds_per_evaluation) {
+                               MeasuredRate measured) {
   CostEstimate e;
-  const bool measured = measured_seconds_per_evaluation > 0;
-  const double loop0_episode = measured ? measured_seconds_per_evaluation : pilot.seconds_per_episode();
-  const double later_episode = measured                    ? measured_seconds_per_evaluation
-                               : c.mutator->uses_parents() ? pilot.offspring_seconds_per_episode()
-                                                           : loop0_episode;
+  const bool breeds = c.mutator->uses_parents();
+  // Seconds per evaluation in loop `loop`. A mutation operator's grow by [cost] from what was
+  // measured: the pilot's offspring (factor cost.offspring_time_at, relative to them) or the
+  // resumed run's own loop (the factor's growth since that loop).
+  auto seconds_per_evaluation = [&](int loop) {
+    if (measured.seconds_per_evaluation > 0) {
+      if (!breeds || measured.loop < 1) return measured.seconds_per_evaluation;
+      return measured.seconds_per_evaluation * s.cost.offspring_time_at(loop_midpoint_evaluations(s, loop)) /
+             s.cost.offspring_time_at(loop_midpoint_evaluations(s, measured.loop));
+    }
+    if (loop == 0 || !breeds) return pilot.seconds_per_episode();
+    return pilot.offspring_seconds_per_episode() * s.cost.offspring_time_at(loop_midpoint_evaluations(s, loop));
+  };
   std::vector<std::size_t> rows;
   for (int loop = 0; loop < s.loops; ++loop) {
     const long long n = loop == 0 ? s.initial_samples : static_cast<long long>(s.iterations) * s.batch;
     if (loop >= first_loop) {
       e.evaluations += n;
-      e.episode_seconds += static_cast<double>(n) * (loop == 0 ? loop0_episode : later_episode);
+      e.episode_seconds += static_cast<double>(n) * seconds_per_evaluation(loop);
     }
     rows.push_back(expected_dataset_rows(pilot, c.grid.cells, loop));
   }

@@ -10,9 +10,12 @@
 //    of the loop-0 archive (uniform parents, theta + kPilotSigma N(0, I): the reference's MAPE-Iso
 //    operator, no model needed) and prices every episode from loop 1 on at their measured time.
 //    What it cannot see is a lengthening that builds up over many loops as the archive reaches
-//    cells only long episodes reach (the Walker's); docs/performance.md gives its size. A resumed
-//    run that has completed a loop past 0 is priced at its own measured rate instead
-//    (measured_rate), so re-running --dry-run on a sweep in progress tracks that lengthening.
+//    cells only long episodes reach (the Walker's, docs/performance.md). An experiment file states
+//    it in [cost] (CostModel, measured on long runs of that environment): from loop 1 on, a
+//    mutation operator's episodes cost the offspring's time times cost.offspring_time at the
+//    loop's middle evaluation. A resumed run that has completed a loop past 0 is priced at its own
+//    measured rate instead (measured_rate), carried forward by the same factor's growth, so
+//    re-running --dry-run on a sweep in progress tracks what it has measured.
 //  * Training. D holds the loop-0 archive after loop 0 (the pilot counts it), D0, and then about
 //    D0 (1 + kDatasetGrowth sqrt(loop)), up to the grid's size; the representation times its own
 //    fit on data of those sizes (Representation::estimate_fit_seconds).
@@ -63,12 +66,6 @@ struct CostEstimate {
   double total_seconds() const { return episode_seconds + training_seconds; }
 };
 
-// Loops [first_loop, settings.loops) of the run: `first_loop` > 0 for a run that resumes.
-// `measured_seconds_per_evaluation` > 0 (a resumed run's own rate, measured_rate) prices its
-// evaluations instead of the pilot. Asks the representation to time its fits (a plugin call, checked).
-CostEstimate estimate_run_cost(const ExperimentSettings& settings, Components& components, const EpisodePilot& pilot,
-                               int first_loop = 0, double measured_seconds_per_evaluation = 0.0);
-
 // A resumed run's own cost: the median wall seconds per evaluation (training taken out) over the
 // iterations of the last loop >= 1 that metrics.csv shows complete, and that loop; {0, -1} when
 // there is none. Episodes lengthen as an archive spreads (the Walker's do for many loops), which no
@@ -78,6 +75,15 @@ struct MeasuredRate {
   int loop = -1;
 };
 MeasuredRate measured_rate(std::istream& metrics_csv, int iterations);
+
+// Loops [first_loop, settings.loops) of the run: `first_loop` > 0 for a run that resumes.
+// `measured` (a resumed run's own rate in core-seconds, from measured_rate), when positive, prices
+// its evaluations instead of the pilot. Asks the representation to time its fits (a plugin call, checked).
+CostEstimate estimate_run_cost(const ExperimentSettings& settings, Components& components, const EpisodePilot& pilot,
+                               int first_loop = 0, MeasuredRate measured = {});
+
+// The evaluations done at the middle of loop `loop` >= 1 (where [cost] is read for it).
+double loop_midpoint_evaluations(const ExperimentSettings& settings, int loop);
 
 // The dataset size the model assumes at loop `loop`'s fit.
 std::size_t expected_dataset_rows(const EpisodePilot& pilot, std::int64_t cells, int loop);

@@ -225,6 +225,15 @@ const ParamSpec kEvaluationParams[] = {
                 "stops (0 = wait forever; the threads backend cannot time out)"),
 };
 
+const ParamSpec kCostParams[] = {
+    param_int_list("evaluations", "[]", 0, kMaxInt,
+                   "evaluations done (increasing) at which offspring_time is given; --dry-run only"),
+    param_float_list("offspring_time", "[]", 0.01, 1000,
+                     "time per evaluation of a mutation operator at each of `evaluations`, as a multiple of the "
+                     "dry-run pilot's offspring (linear in between, end values held; [] = 1 throughout); "
+                     "--dry-run only, no result depends on it"),
+};
+
 struct ComponentTable {
   const char* name;
   Kind kind;
@@ -494,16 +503,28 @@ std::vector<std::string> Document::recorded_search_path() const {
   return plugin_dirs(impl->root, impl->file, "search_path");
 }
 
+double CostModel::offspring_time_at(double n) const {
+  if (evaluations.empty()) return 1.0;
+  if (n <= evaluations.front()) return offspring_time.front();
+  for (std::size_t i = 1; i < evaluations.size(); ++i)
+    if (n <= evaluations[i]) {
+      const double t = (n - evaluations[i - 1]) / (evaluations[i] - evaluations[i - 1]);
+      return offspring_time[i - 1] + t * (offspring_time[i] - offspring_time[i - 1]);
+    }
+  return offspring_time.back();
+}
+
 std::vector<CoreTable> core_tables() {
   return {{"experiment", kExperimentParams, std::size(kExperimentParams)},
           {"policy", kPolicyParams, std::size(kPolicyParams)},
           {"output", kOutputParams, std::size(kOutputParams)},
-          {"evaluation", kEvaluationParams, std::size(kEvaluationParams)}};
+          {"evaluation", kEvaluationParams, std::size(kEvaluationParams)},
+          {"cost", kCostParams, std::size(kCostParams)}};
 }
 
 Experiment resolve(const Document& doc, const Registry& registry) {
   const toml::table& root = doc.impl->root;
-  std::vector<std::string> allowed = {"experiment", "policy", "output", "evaluation", "plugins"};
+  std::vector<std::string> allowed = {"experiment", "policy", "output", "evaluation", "cost", "plugins"};
   for (const auto& t : kComponentTables) allowed.emplace_back(t.name);
   for (const auto& [k, v] : root) {
     const std::string key(k.str());
@@ -543,6 +564,17 @@ Experiment resolve(const Document& doc, const Registry& registry) {
   s.workers = static_cast<int>(w.get_int("workers"));
   s.backend = w.get_string("backend");
   s.timeout_seconds = w.get_float("timeout_seconds");
+  const Config cost = validate_table(sub_table(root, "cost"), "cost", kCostParams, std::size(kCostParams), "the core");
+  for (auto n : cost.get_int_list("evaluations")) s.cost.evaluations.push_back(static_cast<double>(n));
+  s.cost.offspring_time = cost.get_float_list("offspring_time");
+  if (s.cost.evaluations.size() != s.cost.offspring_time.size())
+    throw InputError(cost.where("offspring_time") + ": cost.offspring_time has " +
+                     std::to_string(s.cost.offspring_time.size()) + " values for " +
+                     std::to_string(s.cost.evaluations.size()) + " cost.evaluations; give one per entry");
+  for (std::size_t i = 1; i < s.cost.evaluations.size(); ++i)
+    if (s.cost.evaluations[i] <= s.cost.evaluations[i - 1])
+      throw InputError(cost.where("evaluations") + ": cost.evaluations must increase (entry " + std::to_string(i + 1) +
+                       " is not above entry " + std::to_string(i) + ")");
 
   toml::table resolved;
   auto put_core = [&](const char* name, const Config& cfg, const ParamSpec* specs, std::size_t n) {
@@ -555,6 +587,7 @@ Experiment resolve(const Document& doc, const Registry& registry) {
   put_core("policy", p, kPolicyParams, std::size(kPolicyParams));
   put_core("output", o, kOutputParams, std::size(kOutputParams));
   put_core("evaluation", w, kEvaluationParams, std::size(kEvaluationParams));
+  // [cost] is left out: no result depends on it (CostModel).
 
   for (const auto& ct : kComponentTables) {
     ComponentConfig* cc = nullptr;

@@ -15,6 +15,17 @@
 namespace qd::runtime {
 
 // The core's own settings, resolved.
+// [cost]: what `qdrun --dry-run` assumes about an environment beyond what its pilot measures
+// (runtime/cost_estimate.hpp). It changes no result, so it is not part of a run's configuration:
+// resolved_toml leaves it out, and a run may be resumed or swept under a file that changed it.
+struct CostModel {
+  // Time per evaluation of a mutation operator as a multiple of the pilot's offspring, once
+  // `evaluations[i]` evaluations are done: linear in between, the end values held outside; 1 when
+  // empty. Episodes lengthen as an archive reaches cells that only long episodes reach.
+  std::vector<double> evaluations, offspring_time;
+  double offspring_time_at(double evaluations_done) const;
+};
+
 struct ExperimentSettings {
   std::string name;
   std::uint64_t seed = 0;
@@ -32,6 +43,7 @@ struct ExperimentSettings {
   int workers = 0;               // 0 = all cores
   std::string backend = "auto";  // auto | threads | processes | mpi
   double timeout_seconds = 0;
+  CostModel cost;  // [cost]: read by --dry-run only
 };
 
 // One component table after validation.
