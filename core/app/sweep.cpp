@@ -422,9 +422,10 @@ void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& r
       auto factor = [&](int loop) {
         return cost.offspring_time_at(runtime::loop_midpoint_evaluations(ex.settings, loop));
       };
-      const double base = measured.core_seconds_per_evaluation > 0 ? factor(measured.loop) : 1.0;
-      std::snprintf(growth, sizeof growth, "; x%.2f to x%.2f by [cost] over loops %d-%d", factor(first) / base,
-                    factor(last_loop) / base, first, last_loop);
+      const bool own = measured.core_seconds_per_evaluation > 0;
+      const double base = own ? factor(measured.loop) : 1.0;
+      std::snprintf(growth, sizeof growth, "; [cost]: %s x%.2f to x%.2f over loops %d-%d", own ? "that" : "loop 0's",
+                    factor(first) / base, factor(last_loop) / base, first, last_loop);
     }
     if (measured.core_seconds_per_evaluation > 0)
       std::snprintf(basis, sizeof basis, "measured in its loop %d: %.2f ms/evaluation x %d worker%s%s", measured.loop,

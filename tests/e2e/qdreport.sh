@@ -58,6 +58,32 @@ for name in PoMS MAPE-Iso ps-uniform; do
 done
 grep -q "^All 9 compared runs: estimate" "$report"
 grep -q "^The sweep ran in 1 invocation of qdreport, [0-9.]* h of wall time in all (ratio to the estimate" "$report"
+# Episode lengthening: the breeding runs' (PoMS and MAPE-Iso, not ps-uniform) loop-1 time per
+# evaluation over their loop 0's, averaged, and the [cost] lines that state it, which qdrun accepts.
+expected=$(/usr/bin/python3 - "$out/runs" <<'PY'
+import csv, sys
+ratios, middle = [], None
+for alg in ("poms", "iso"):
+    for s in (1, 2, 3):
+        rows = list(csv.DictReader(open(f"{sys.argv[1]}/striker-{alg}/seed-{s}/metrics.csv")))
+        end = {r["loop"]: r for r in rows}
+        work = lambda r: float(r["wall_seconds"]) - float(r["train_seconds"] or 0)
+        e0, e1 = int(end["0"]["evaluations"]), int(end["1"]["evaluations"])
+        ratios.append((work(end["1"]) - work(end["0"])) / (e1 - e0) / (work(end["0"]) / e0))
+        middle = (e0 + e1) // 2
+print(f"{middle} {sum(ratios) / len(ratios):.2f}")
+PY
+)
+read -r middle factor <<< "$expected"
+grep -q "^## Episode lengthening: time per evaluation against loop 0's" "$report"
+grep -q "^striker, 6 runs:$" "$report"
+grep -q "^| time per evaluation / loop 0's | $factor |$" "$report" \
+  || { echo "expected $factor"; sed -n '/## Episode lengthening/,$p' "$report"; exit 1; }
+grep -q "^evaluations = \[0, $middle\]$" "$report" && grep -q "^offspring_time = \[1.0, $factor\]$" "$report"
+"$qdrun" "$src/experiments/striker/iso.toml" --seeds 1 -o "$out-dry" --set experiment.loops=3 --dry-run \
+  --set "cost.evaluations=[0, $middle]" --set "cost.offspring_time=[1.0, $factor]" > "$out.log" \
+  || { cat "$out.log"; exit 1; }
+grep -q "\[cost\]: loop 0's x" "$out.log"
 # Run again: every run is complete; the estimate stays the first one, the invocation is added.
 cp "$out/estimate.txt" "$out.estimate"
 /usr/bin/python3 "$src/share/qdreport" --environments striker --algorithms poms,iso,ps-uniform --seeds 1,2,3 \

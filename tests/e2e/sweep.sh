@@ -31,15 +31,15 @@ grep -Eq "^sweep: estimated [0-9.]+ core-hours \(episodes [0-9.]+, training [0-9
 "$qdrun" "$smoke/iso.toml" --seeds 1 -o "$out-dry" --evaluations 600 --dry-run > "$log"
 grep -Eq "^  smoke-iso/seed-1 +[0-9.]+ core-h: 600 evaluations .*\(loop 0: [0-9.]+ ms/episode, .*; offspring: [0-9.]+ ms/episode, [0-9]+ steps\)$" "$log"
 [ ! -e "$out-dry" ] || { echo "--dry-run created $out-dry"; exit 1; }
-# A [cost] table (time per evaluation 1 + 2 n / 1000 after n evaluations) lengthens a breeding
-# run's episodes from the middle of loop 1 (150 evaluations) to that of loop 5 (550); a resumed run
-# grows from its measured loop 3 (350). It is not part of a run's configuration: the runs made
+# A [cost] table (loop 0's time per evaluation times 1 + 2 n / 1000 after n evaluations) prices a
+# breeding run's episodes from the middle of loop 1 (150 evaluations) to that of loop 5 (550); a
+# resumed run grows from its measured loop 3 (350). It is not part of a run's configuration: the runs made
 # without it are still resumed.
 cost=(--set cost.evaluations=[0,1000] --set cost.offspring_time=[1.0,3.0])
 "$qdrun" "$smoke/iso.toml" --seeds 1 -o "$out-dry" --evaluations 600 "${cost[@]}" --dry-run > "$log"
-grep -Eq "^  smoke-iso/seed-1 .*; offspring: [0-9.]+ ms/episode, [0-9]+ steps; x1.30 to x2.10 by \[cost\] over loops 1-5\)$" "$log"
+grep -Eq "^  smoke-iso/seed-1 .*; offspring: [0-9.]+ ms/episode, [0-9]+ steps; \[cost\]: loop 0's x1.30 to x2.10 over loops 1-5\)$" "$log"
 "$qdrun" "$smoke/iso.toml" --seeds 1 -o "$out" --evaluations 600 "${cost[@]}" --dry-run > "$log"
-grep -Eq "^  smoke-iso/seed-1 .*\(measured in its loop 3: [0-9.]+ ms/evaluation x [0-9]+ workers?; x1.12 to x1.24 by \[cost\] over loops 4-5\)$" "$log"
+grep -Eq "^  smoke-iso/seed-1 .*\(measured in its loop 3: [0-9.]+ ms/evaluation x [0-9]+ workers?; \[cost\]: that x1.12 to x1.24 over loops 4-5\)$" "$log"
 # A run that fails (an unreadable checkpoint) is named, the others still run.
 printf 'garbage' > "$out/smoke-poms/seed-1/checkpoint.bin"
 rm "$out/smoke-poms/seed-1/archive.csv"; echo running > "$out/smoke-poms/seed-1/status"

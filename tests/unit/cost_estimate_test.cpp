@@ -243,14 +243,15 @@ TEST(CostEstimate, TheCostTableInterpolatesLinearlyAndHoldsItsEnds) {
 }
 
 // World: loop 0 is 6 evaluations, loops 1 and 2 are 10 each, so their middles are at 11 and 21.
-TEST(CostEstimate, TheCostTableLengthensABreedingRunsEpisodesAtEachLoopsMiddle) {
+TEST(CostEstimate, TheCostTablePricesABreedingRunsEpisodesFromLoopZerosAtEachLoopsMiddle) {
   World w(true, 0);
   EXPECT_DOUBLE_EQ(loop_midpoint_evaluations(w.s, 1), 11.0);
   EXPECT_DOUBLE_EQ(loop_midpoint_evaluations(w.s, 2), 21.0);
   w.s.cost.evaluations = {10, 30};
   w.s.cost.offspring_time = {2, 4};
   const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
-  EXPECT_DOUBLE_EQ(e.episode_seconds, 6 * 0.020 + 10 * 0.060 * 2.1 + 10 * 0.060 * 3.1);
+  // Measured on long runs against loop 0's time, so it replaces the pilot's offspring.
+  EXPECT_DOUBLE_EQ(e.episode_seconds, 6 * 0.020 + 10 * 0.020 * 2.1 + 10 * 0.020 * 3.1);
 
   World sampler(false, 0);  // random search does not breed from elites: loop 0's time throughout
   sampler.s.cost = w.s.cost;

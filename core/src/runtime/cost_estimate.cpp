@@ -149,9 +149,9 @@ CostEstimate estimate_run_cost(const ExperimentSettings& s, Components& c, const
                                MeasuredRate measured) {
   CostEstimate e;
   const bool breeds = c.mutator->uses_parents();
-  // Seconds per evaluation in loop `loop`. A mutation operator's grow by [cost] from what was
-  // measured: the pilot's offspring (factor cost.offspring_time_at, relative to them) or the
-  // resumed run's own loop (the factor's growth since that loop).
+  // Seconds per evaluation in loop `loop`. [cost], measured on long runs, states a mutation
+  // operator's as a multiple of loop 0's; without it, the pilot's offspring price them. A resumed
+  // run's own rate grows as [cost] does from the loop it was measured in.
   auto seconds_per_evaluation = [&](int loop) {
     if (measured.seconds_per_evaluation > 0) {
       if (!breeds || measured.loop < 1) return measured.seconds_per_evaluation;
@@ -159,7 +159,8 @@ CostEstimate estimate_run_cost(const ExperimentSettings& s, Components& c, const
              s.cost.offspring_time_at(loop_midpoint_evaluations(s, measured.loop));
     }
     if (loop == 0 || !breeds) return pilot.seconds_per_episode();
-    return pilot.offspring_seconds_per_episode() * s.cost.offspring_time_at(loop_midpoint_evaluations(s, loop));
+    if (s.cost.evaluations.empty()) return pilot.offspring_seconds_per_episode();
+    return pilot.seconds_per_episode() * s.cost.offspring_time_at(loop_midpoint_evaluations(s, loop));
   };
   std::vector<std::size_t> rows;
   for (int loop = 0; loop < s.loops; ++loop) {

@@ -11,11 +11,11 @@
 //    operator, no model needed) and prices every episode from loop 1 on at their measured time.
 //    What it cannot see is a lengthening that builds up over many loops as the archive reaches
 //    cells only long episodes reach (the Walker's, docs/performance.md). An experiment file states
-//    it in [cost] (CostModel, measured on long runs of that environment): from loop 1 on, a
-//    mutation operator's episodes cost the offspring's time times cost.offspring_time at the
-//    loop's middle evaluation. A resumed run that has completed a loop past 0 is priced at its own
-//    measured rate instead (measured_rate), carried forward by the same factor's growth, so
-//    re-running --dry-run on a sweep in progress tracks what it has measured.
+//    it in [cost] (CostModel; qdreport measures it from finished runs): then, from loop 1 on, a
+//    mutation operator's episodes cost loop 0's time times cost.offspring_time at the loop's
+//    middle evaluation. A resumed run that has completed a loop past 0 is priced at its own
+//    measured rate instead (measured_rate), grown as [cost] grows from that loop on, so re-running
+//    --dry-run on a sweep in progress tracks what it has measured.
 //  * Training. D holds the loop-0 archive after loop 0 (the pilot counts it), D0, and then about
 //    D0 (1 + kDatasetGrowth sqrt(loop)), up to the grid's size; the representation times its own
 //    fit on data of those sizes (Representation::estimate_fit_seconds).

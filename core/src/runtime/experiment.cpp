@@ -229,9 +229,9 @@ const ParamSpec kCostParams[] = {
     param_int_list("evaluations", "[]", 0, kMaxInt,
                    "evaluations done (increasing) at which offspring_time is given; --dry-run only"),
     param_float_list("offspring_time", "[]", 0.01, 1000,
-                     "time per evaluation of a mutation operator at each of `evaluations`, as a multiple of the "
-                     "dry-run pilot's offspring (linear in between, end values held; [] = 1 throughout); "
-                     "--dry-run only, no result depends on it"),
+                     "time per evaluation of a mutation operator at each of `evaluations`, as a multiple of loop "
+                     "0's (linear in between, end values held; [] = the dry-run pilot's offspring throughout; "
+                     "qdreport measures it from finished runs); --dry-run only, no result depends on it"),
 };
 
 struct ComponentTable {

@@ -19,9 +19,10 @@ namespace qd::runtime {
 // (runtime/cost_estimate.hpp). It changes no result, so it is not part of a run's configuration:
 // resolved_toml leaves it out, and a run may be resumed or swept under a file that changed it.
 struct CostModel {
-  // Time per evaluation of a mutation operator as a multiple of the pilot's offspring, once
+  // Wall time per evaluation of a mutation operator as a multiple of loop 0's, once
   // `evaluations[i]` evaluations are done: linear in between, the end values held outside; 1 when
-  // empty. Episodes lengthen as an archive reaches cells that only long episodes reach.
+  // empty. Episodes lengthen as an archive reaches cells that only long episodes reach; qdreport
+  // measures this from finished runs ("Episode lengthening").
   std::vector<double> evaluations, offspring_time;
   double offspring_time_at(double evaluations_done) const;
 };
