@@ -388,8 +388,8 @@ void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& r
   std::map<std::string, runtime::EpisodePilot> pilots;
   double episodes = 0, training = 0;
   std::printf(
-      "estimate (one core per run; episodes from a pilot of loop 0 and of its offspring, or from a resumed run's "
-      "own loops; training timed by the representation):\n");
+      "estimate (one core per run; episodes from a pilot of loop 0 and of its offspring and the file's [cost], or "
+      "from a resumed run's own loops; training timed by the representation):\n");
   for (std::size_t i : pending) {
     const PlannedRun& r = runs[i];
     Document doc = read_run_document(o, r.file, r.seed, r.overrides);
