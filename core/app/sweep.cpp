@@ -414,19 +414,12 @@ void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& r
     training += e.training_seconds;
     // What priced the episodes: the run's own loops, or the pilot (whose offspring count only for
     // a run that breeds from elites), and the lengthening [cost] adds to a breeding run's.
-    const runtime::CostModel& cost = ex.settings.cost;
-    const int last_loop = ex.settings.loops - 1;
     char basis[256], growth[96] = "";
-    const int first = std::max(r.first_loop, 1);
-    if (c.mutator->uses_parents() && !cost.evaluations.empty() && first <= last_loop) {
-      auto factor = [&](int loop) {
-        return cost.offspring_time_at(runtime::loop_midpoint_evaluations(ex.settings, loop));
-      };
-      const bool own = measured.core_seconds_per_evaluation > 0;
-      const double base = own ? factor(measured.loop) : 1.0;
-      std::snprintf(growth, sizeof growth, "; [cost]: %s x%.2f to x%.2f over loops %d-%d", own ? "that" : "loop 0's",
-                    factor(first) / base, factor(last_loop) / base, first, last_loop);
-    }
+    const runtime::CostEstimate::Lengthening& l = e.lengthening;
+    if (l.first_loop <= l.last_loop)
+      std::snprintf(growth, sizeof growth, "; [cost]: %s x%.2f to x%.2f over loops %d-%d",
+                    measured.core_seconds_per_evaluation > 0 ? "that" : "loop 0's", l.from, l.to, l.first_loop,
+                    l.last_loop);
     if (measured.core_seconds_per_evaluation > 0)
       std::snprintf(basis, sizeof basis, "measured in its loop %d: %.2f ms/evaluation x %d worker%s%s", measured.loop,
                     1e3 * measured.core_seconds_per_evaluation / measured.workers, measured.workers,

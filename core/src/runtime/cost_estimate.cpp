@@ -148,20 +148,27 @@ double loop_midpoint_evaluations(const ExperimentSettings& s, int loop) {
 CostEstimate estimate_run_cost(const ExperimentSettings& s, Components& c, const EpisodePilot& pilot, int first_loop,
                                MeasuredRate measured) {
   CostEstimate e;
-  const bool breeds = c.mutator->uses_parents();
-  // Seconds per evaluation in loop `loop`. [cost], measured on long runs, states a mutation
-  // operator's as a multiple of loop 0's; without it, the pilot's offspring price them. A resumed
-  // run's own rate grows as [cost] does from the loop it was measured in.
+  const bool own_rate = measured.seconds_per_evaluation > 0;
+  // [cost], measured on long runs, states a breeding run's time per evaluation as a multiple of
+  // loop 0's; without it, the pilot's offspring price those loops. A resumed run's own rate grows
+  // as [cost] does from the loop it was measured in.
+  const bool lengthens = c.mutator->uses_parents() && !s.cost.evaluations.empty() && (!own_rate || measured.loop >= 1);
+  auto factor = [&](int loop) { return s.cost.offspring_time_at(loop_midpoint_evaluations(s, loop)); };
+  const double base_factor = own_rate && lengthens ? factor(measured.loop) : 1.0;
+  const double later_base = own_rate                    ? measured.seconds_per_evaluation
+                            : lengthens                 ? pilot.seconds_per_episode()
+                            : c.mutator->uses_parents() ? pilot.offspring_seconds_per_episode()
+                                                        : pilot.seconds_per_episode();
   auto seconds_per_evaluation = [&](int loop) {
-    if (measured.seconds_per_evaluation > 0) {
-      if (!breeds || measured.loop < 1) return measured.seconds_per_evaluation;
-      return measured.seconds_per_evaluation * s.cost.offspring_time_at(loop_midpoint_evaluations(s, loop)) /
-             s.cost.offspring_time_at(loop_midpoint_evaluations(s, measured.loop));
-    }
-    if (loop == 0 || !breeds) return pilot.seconds_per_episode();
-    if (s.cost.evaluations.empty()) return pilot.offspring_seconds_per_episode();
-    return pilot.seconds_per_episode() * s.cost.offspring_time_at(loop_midpoint_evaluations(s, loop));
+    if (loop == 0 && !own_rate) return pilot.seconds_per_episode();
+    return lengthens ? later_base * factor(loop) / base_factor : later_base;
   };
+  if (lengthens) {
+    e.lengthening.first_loop = std::max(first_loop, 1);
+    e.lengthening.last_loop = s.loops - 1;
+    e.lengthening.from = factor(e.lengthening.first_loop) / base_factor;
+    e.lengthening.to = factor(e.lengthening.last_loop) / base_factor;
+  }
   std::vector<std::size_t> rows;
   for (int loop = 0; loop < s.loops; ++loop) {
     const long long n = loop == 0 ? s.initial_samples : static_cast<long long>(s.iterations) * s.batch;

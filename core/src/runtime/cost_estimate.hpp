@@ -63,6 +63,12 @@ struct CostEstimate {
   double episode_seconds = 0.0;   // one core
   double training_seconds = 0.0;  // one core
   long long evaluations = 0;      // that these loops run
+  // The [cost] lengthening applied to loops first_loop..last_loop (none when first_loop >
+  // last_loop): times loop 0's time, or times the resumed run's own measured rate.
+  struct Lengthening {
+    int first_loop = 1, last_loop = 0;
+    double from = 1.0, to = 1.0;
+  } lengthening;
   double total_seconds() const { return episode_seconds + training_seconds; }
 };
 

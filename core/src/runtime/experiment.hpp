@@ -14,7 +14,6 @@
 
 namespace qd::runtime {
 
-// The core's own settings, resolved.
 // [cost]: what `qdrun --dry-run` assumes about an environment beyond what its pilot measures
 // (runtime/cost_estimate.hpp). It changes no result, so it is not part of a run's configuration:
 // resolved_toml leaves it out, and a run may be resumed or swept under a file that changed it.
@@ -27,6 +26,7 @@ struct CostModel {
   double offspring_time_at(double evaluations_done) const;
 };
 
+// The core's own settings, resolved.
 struct ExperimentSettings {
   std::string name;
   std::uint64_t seed = 0;
