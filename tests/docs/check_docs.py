@@ -114,13 +114,14 @@ def check_algorithm_table(root):
         if row != want:
             fail(f"README.md: {name} is {row}, share/algorithms.toml says {want}")
     stems = {a["experiment"]: a for a in table}
-    variants = [d for d in sorted((root / "experiments").iterdir()) if d.is_dir() and d.name != "smoke"]
+    variants = [d for d in sorted((root / "experiments").iterdir()) if d.is_dir() and d.name not in ("smoke", "reference")]
+    variants += [d for d in sorted((root / "experiments" / "reference").iterdir()) if d.is_dir()]
     if not variants:
         fail("experiments/ holds no variant directories")
     for d in variants:
         names = {p.stem for p in d.glob("*.toml")} - {"base"}
         if names != set(stems):
-            fail(f"experiments/{d.name}: files {sorted(names)}, share/algorithms.toml {sorted(stems)}")
+            fail(f"{d.relative_to(root)}: files {sorted(names)}, share/algorithms.toml {sorted(stems)}")
         for stem in sorted(names & set(stems)):
             cfg = load_experiment(d / f"{stem}.toml")
             got = (cfg.get("representation", {}).get("type", "none"), cfg.get("mutator", {}).get("type"),
@@ -128,7 +129,7 @@ def check_algorithm_table(root):
             a = stems[stem]
             want = (a["representation"], a["mutator"], a["initial"])
             if got != want:
-                fail(f"experiments/{d.name}/{stem}.toml: (representation, mutator, initial) {got}, "
+                fail(f"{d.relative_to(root)}/{stem}.toml: (representation, mutator, initial) {got}, "
                      f"share/algorithms.toml {want}")
     for script in ("qdplot", "qdreport"):
         text = (root / "share" / script).read_text()
