@@ -249,6 +249,16 @@ std::unique_ptr<Run> open_run_directory(const Cli& cli, const fs::path& dir, Reg
   return with_plugin_hint(dir, reg, [&] { return std::make_unique<Run>(resolve(doc, reg), reg, std::move(opt)); });
 }
 
+// Replays run every episode in a fresh world (RolloutBatch::world = -1).
+void note_fresh_worlds(const Run& run) {
+  const int worlds = run.components().environment->info().persistent_worlds;
+  if (worlds > 0)
+    std::printf(
+        "note: this environment keeps %d persistent worlds during a run (%s); a replay runs in a fresh world, "
+        "so a trace can differ from the run's episode\n",
+        worlds, run.components().environment_label.c_str());
+}
+
 int replay(const Cli& cli) {
   if (cli.all) return replay_all(cli);
   if (cli.cell < 0) throw InputError("--replay needs --cell N (an index from archive.csv)");
@@ -264,6 +274,7 @@ int replay(const Cli& cli) {
   std::printf("replayed cell %lld: %s, %d steps, lands in cell %lld%s\nwrote %s\n", cli.cell, to_string(t.status),
               t.steps, static_cast<long long>(cell),
               cell == cli.cell ? " (as stored)" : " (differs from the stored cell)", svg.c_str());
+  note_fresh_worlds(*run);
   return kExitOk;
 }
 
@@ -276,6 +287,7 @@ int replay_all(const Cli& cli) {
   const fs::path csv = cli.traces.empty() ? dir / "traces.csv" : fs::path(cli.traces);
   const ReplayAllResult r = replay_all(*run, run->workers(), csv);
   std::printf("replayed %zu elites, %zu land in their stored cell\nwrote %s\n", r.elites, r.as_stored, csv.c_str());
+  note_fresh_worlds(*run);
   return kExitOk;
 }
 

@@ -22,6 +22,8 @@ Mutator::~Mutator() = default;
 bool Environment::draw_svg(const Trace&, std::ostream&) const {
   return false;
 }
+void Environment::save(std::ostream&) const {}
+void Environment::load(std::istream&) {}
 
 void Representation::decoder_vjp(const Matrix& z, const Matrix& v, Matrix& out) const {
   QD_CHECK(z.rows() == v.rows(), "decoder_vjp: z and v must have the same number of rows");

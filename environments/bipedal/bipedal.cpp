@@ -5,9 +5,12 @@
 
 #include <box2d/box2d.h>
 
+#include <qd/state_io.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -153,13 +156,47 @@ const double* flat_heights() {
   return heights.data();
 }
 
+b2Vec2 gravity() {
+  return b2Vec2(0.0f, -10.0f);
+}
+
+// The kicker's ball: at its start position (resting 1/3 above the ground), or as `def` says.
+b2Body* add_ball(b2World& world, b2BodyDef def) {
+  def.type = b2_dynamicBody;
+  def.linearDamping = 1.0f;
+  b2Body* ball = world.CreateBody(&def);
+  b2CircleShape circle;
+  circle.m_radius = static_cast<float>(kBallRadius);
+  b2FixtureDef fixture;
+  fixture.shape = &circle;
+  fixture.density = 0.5f;
+  fixture.friction = 0.1f;
+  fixture.restitution = 0.7f;
+  fixture.filter.categoryBits = kBallCategory;
+  fixture.filter.maskBits = kBallMask;
+  ball->CreateFixture(&fixture);
+  return ball;
+}
+b2BodyDef ball_at_start() {
+  b2BodyDef def;
+  def.position.Set(static_cast<float>(kBallStartX), static_cast<float>(kTerrainHeight + 2 * kBallRadius));
+  return def;
+}
+
 class Scene {
  public:
-  explicit Scene(const EpisodeOptions& options) : task_(options.task), world_(b2Vec2(0.0f, -10.0f)) {
+  // A fresh world, or the persistent world `ghosts` (its earlier balls stay; this episode's ball
+  // joins them when the scene ends).
+  explicit Scene(const EpisodeOptions& options, BallWorld* ghosts = nullptr)
+      : task_(options.task),
+        own_world_(ghosts ? std::nullopt : std::optional<b2World>(std::in_place, gravity())),
+        world_(ghosts ? ghosts->world() : *own_world_),
+        ghosts_(ghosts) {
     const bool walker = task_ == Task::kWalker;
     world_.SetContactListener(&contacts_);
-    add_terrain(world_, walker ? walker_terrain_heights().data() : flat_heights(),
-                walker ? kWalkerFriction : kKickerFriction);
+    if (ghosts == nullptr)  // a persistent world keeps its terrain (BallWorld)
+      add_terrain(world_, walker ? walker_terrain_heights().data() : flat_heights(),
+                  walker ? kWalkerFriction : kKickerFriction);
     const std::uint16_t category = walker ? kWalkerBodyCategory : kKickerBodyCategory;
     const std::uint16_t mask = walker ? kWalkerBodyMask : kKickerBodyMask;
     const double init_x = walker ? kWalkerStartX : kKickerStartX;
@@ -239,28 +276,30 @@ class Scene {
       legs_[2 * side + 1] = lower;
     }
 
-    if (!walker) {
-      b2BodyDef ball_def;
-      ball_def.type = b2_dynamicBody;
-      ball_def.position.Set(static_cast<float>(kBallStartX), static_cast<float>(kTerrainHeight + 2 * kBallRadius));
-      ball_def.linearDamping = 1.0f;
-      ball_ = world_.CreateBody(&ball_def);
-      b2CircleShape circle;
-      circle.m_radius = static_cast<float>(kBallRadius);
-      b2FixtureDef ball_fixture;
-      ball_fixture.shape = &circle;
-      ball_fixture.density = 0.5f;
-      ball_fixture.friction = 0.1f;
-      ball_fixture.restitution = 0.7f;
-      ball_fixture.filter.categoryBits = kBallCategory;
-      ball_fixture.filter.maskBits = kBallMask;
-      ball_->CreateFixture(&ball_fixture);
-    }
+    if (!walker) ball_ = add_ball(world_, ball_at_start());
 
     contacts_.hull = hull_;
     for (int k = 0; k < 4; ++k) contacts_.legs[k] = legs_[k];
     contacts_.ball = ball_;
   }
+
+  // In a persistent world, gym's _destroy() at the next reset: the listener goes, then the hull and
+  // legs (with their joints); every ball stays. gym destroys and rebuilds the terrain too, which
+  // wakes every ball resting on it (destroying a touching contact wakes both bodies) for another
+  // half second of simulated settling; the flat terrain is rebuilt where it was, so we keep it
+  // instead: the same ground, without re-simulating every resting ball each episode (README.md).
+  ~Scene() {
+    if (ghosts_ == nullptr) return;
+    world_.SetContactListener(nullptr);
+    std::vector<b2Body*> doomed;
+    for (b2Body* b = world_.GetBodyList(); b != nullptr; b = b->GetNext())
+      if (b->GetType() == b2_dynamicBody && b->GetFixtureList()->GetFilterData().categoryBits != kBallCategory)
+        doomed.push_back(b);
+    for (b2Body* b : doomed) world_.DestroyBody(b);
+    ghosts_->add(ball_);
+  }
+  Scene(const Scene&) = delete;
+  Scene& operator=(const Scene&) = delete;
 
   // gym's step(): motors from the action (kicker: zeroed after the first 101 policy calls), one
   // world step, lidar. `action` is overwritten with the action actually applied.
@@ -461,7 +500,9 @@ class Scene {
  private:
   Task task_;
   ContactFlags contacts_;  // declared first so that it outlives the world that calls it
-  b2World world_;
+  std::optional<b2World> own_world_;
+  b2World& world_;
+  BallWorld* ghosts_;
   b2Body* hull_ = nullptr;
   b2Body* legs_[4] = {nullptr, nullptr, nullptr, nullptr};
   b2RevoluteJoint* joints_[4] = {nullptr, nullptr, nullptr, nullptr};
@@ -509,8 +550,10 @@ SceneFacts scene_facts(Task task) {
   return scene.facts();
 }
 
-void run_episode(const EpisodeOptions& options, Policy& policy, Trace& trace, std::vector<float>* observations) {
+void run_episode(const EpisodeOptions& options, Policy& policy, Trace& trace, std::vector<float>* observations,
+                 BallWorld* ghosts) {
   const bool walker = options.task == Task::kWalker;
+  if (walker && ghosts != nullptr) throw std::invalid_argument("bipedal: the walker has no ball to leave behind");
   const int n_obs = observation_size(options.task);
   trace.clear();
   trace.main.reset(walker ? kWalkerMainCols : kKickerMainCols);
@@ -519,7 +562,7 @@ void run_episode(const EpisodeOptions& options, Policy& policy, Trace& trace, st
   trace.main.data.reserve((max_rows + 2) * static_cast<std::size_t>(trace.main.cols));
   trace.aux.data.reserve((max_rows + 2) * static_cast<std::size_t>(trace.aux.cols));
 
-  Scene scene(options);
+  Scene scene(options, ghosts);
   double obs[kKickerObservationSize] = {};
   float obs_f[kKickerObservationSize] = {};
   float action[kActionSize] = {0.0f, 0.0f, 0.0f, 0.0f};
@@ -571,6 +614,54 @@ void run_episode(const EpisodeOptions& options, Policy& policy, Trace& trace, st
   trace.events.push_back(static_cast<int>(why));
 }
 
+BallWorld::BallWorld() : world_(std::make_unique<b2World>(gravity())) {
+  add_terrain(*world_, flat_heights(), kKickerFriction);
+  balls_.push_back(add_ball(*world_, ball_at_start()));
+}
+BallWorld::~BallWorld() = default;
+BallWorld::BallWorld(BallWorld&&) noexcept = default;
+BallWorld& BallWorld::operator=(BallWorld&&) noexcept = default;
+
+namespace {
+constexpr std::uint32_t kBallWorldTag = 0x47424c31;  // "GBL1"
+}  // namespace
+
+void BallWorld::save(std::ostream& out) const {
+  state::write<std::uint32_t>(out, kBallWorldTag);
+  state::write<std::uint64_t>(out, balls_.size());
+  for (const b2Body* b : balls_) {
+    const b2Vec2 p = b->GetPosition(), v = b->GetLinearVelocity();
+    for (float f : {p.x, p.y, b->GetAngle(), v.x, v.y, b->GetAngularVelocity()}) state::write<float>(out, f);
+    state::write<std::uint8_t>(out, b->IsAwake() ? 1 : 0);
+  }
+}
+
+void BallWorld::load(std::istream& in) {
+  if (state::read<std::uint32_t>(in) != kBallWorldTag) throw StateError("not a ghost-ball world");
+  const auto n = state::read<std::uint64_t>(in);
+  if (n == 0 || n > (std::uint64_t{1} << 32)) throw StateError("implausible ghost-ball count " + std::to_string(n));
+  auto world = std::make_unique<b2World>(gravity());
+  add_terrain(*world, flat_heights(), kKickerFriction);
+  std::vector<b2Body*> balls;
+  balls.reserve(static_cast<std::size_t>(n));
+  for (std::uint64_t k = 0; k < n; ++k) {
+    float f[6];
+    for (float& x : f) x = state::read<float>(in);
+    const bool awake = state::read<std::uint8_t>(in) != 0;
+    if (!std::all_of(f, f + 6, [](float x) { return std::isfinite(x); }))
+      throw StateError("ghost ball " + std::to_string(k) + " has a non-finite state");
+    b2BodyDef def;
+    def.position.Set(f[0], f[1]);
+    def.angle = f[2];
+    def.linearVelocity.Set(f[3], f[4]);
+    def.angularVelocity = f[5];
+    def.awake = awake;
+    balls.push_back(add_ball(*world, def));
+  }
+  world_ = std::move(world);
+  balls_ = std::move(balls);
+}
+
 BipedalEnvironment::BipedalEnvironment(Task task, const Config& cfg) {
   options_.task = task;
   options_.mix_scale = cfg.get_bool("mix_scale");
@@ -581,6 +672,7 @@ BipedalEnvironment::BipedalEnvironment(Task task, const Config& cfg) {
   if (options_.normalised && options_.mix_scale)
     throw ConfigError("normalised", "normalised and mix_scale are two different observations: set at most one");
   options_.max_steps = static_cast<int>(cfg.get_int("max_steps"));
+  if (task == Task::kKicker) ghost_worlds_.resize(static_cast<std::size_t>(cfg.get_int("ghost_balls")));
   warm_up_box2d();
 }
 
@@ -590,7 +682,23 @@ EnvironmentInfo BipedalEnvironment::info() const {
   info.action_size = kActionSize;
   info.max_steps = options_.max_steps;
   info.default_descriptor = options_.task == Task::kWalker ? "walker-gait" : "kicker-ball";
+  info.persistent_worlds = static_cast<int>(ghost_worlds_.size());
   return info;
+}
+
+void BipedalEnvironment::save(std::ostream& out) const {
+  state::write<std::uint64_t>(out, ghost_worlds_.size());
+  for (const BallWorld& w : ghost_worlds_) w.save(out);
+}
+
+void BipedalEnvironment::load(std::istream& in) {
+  const auto n = state::read<std::uint64_t>(in);
+  if (n != ghost_worlds_.size())
+    throw StateError("the state holds " + std::to_string(n) + " ghost-ball worlds, the environment has " +
+                     std::to_string(ghost_worlds_.size()));
+  std::vector<BallWorld> worlds(ghost_worlds_.size());
+  for (BallWorld& w : worlds) w.load(in);
+  ghost_worlds_ = std::move(worlds);
 }
 
 void BipedalEnvironment::rollout(const RolloutBatch& batch, Trace* traces) const {
@@ -601,9 +709,17 @@ void BipedalEnvironment::rollout(const RolloutBatch& batch, Trace* traces) const
                                 std::to_string(shape.outputs()) + " does not match the environment (" +
                                 std::to_string(observation_size(options_.task)) + " -> 4)");
   Policy policy(shape);
+  BallWorld* ghosts = nullptr;
+  if (batch.world >= 0) {
+    if (static_cast<std::size_t>(batch.world) >= ghost_worlds_.size() || batch.end - batch.begin != 1)
+      throw std::invalid_argument("bipedal: world " + std::to_string(batch.world) + " for rows [" +
+                                  std::to_string(batch.begin) + ", " + std::to_string(batch.end) + "), but " +
+                                  std::to_string(ghost_worlds_.size()) + " persistent worlds and one row per call");
+    ghosts = &ghost_worlds_[static_cast<std::size_t>(batch.world)];
+  }
   for (std::size_t i = batch.begin; i < batch.end; ++i) {
     policy.load(batch.row(i));
-    run_episode(options_, policy, traces[i]);
+    run_episode(options_, policy, traces[i], nullptr, ghosts);
   }
 }
 

@@ -12,9 +12,14 @@
 
 #include <array>
 #include <cstdint>
+#include <istream>
+#include <memory>
 #include <ostream>
 #include <utility>
 #include <vector>
+
+class b2World;
+class b2Body;
 
 namespace qd::bipedal {
 
@@ -81,11 +86,40 @@ int observation_size(Task task) noexcept;
 // The 200 walker terrain heights of gym's seed-100 terrain (seed_task = 100; terrain.cpp).
 const std::array<double, kTerrainLength>& walker_terrain_heights() noexcept;
 
+// One persistent world of the reference's kicker (README.md, "Ghost balls"): gym's reset destroys
+// the terrain, hull and legs of the last episode but not its ball, and the reference reuses one
+// world per process, so every earlier episode's ball stays in it. A new BallWorld is the world as
+// the environment's constructor leaves it: the flat terrain (kept from episode to episode) and
+// one ball at the start position, never stepped.
+class BallWorld {
+ public:
+  BallWorld();
+  ~BallWorld();
+  BallWorld(BallWorld&&) noexcept;
+  BallWorld& operator=(BallWorld&&) noexcept;
+
+  std::size_t balls() const noexcept { return balls_.size(); }
+  // Every ball's position, angle, velocities and whether it is awake, in creation order (float32,
+  // bit for bit); load() rebuilds the world from that. Contacts and the broad-phase are rebuilt,
+  // not restored, which is why the core reloads the worlds after each checkpoint too.
+  void save(std::ostream& out) const;
+  void load(std::istream& in);
+
+  b2World& world() noexcept { return *world_; }
+  void add(b2Body* ball) { balls_.push_back(ball); }
+
+ private:
+  std::unique_ptr<b2World> world_;
+  std::vector<b2Body*> balls_;  // in creation order
+};
+
 // Runs one episode of `policy` (parameters already loaded) into `trace` (cleared first). When
 // `observations` is given, every observation the policy saw is appended to it (the first one is
-// the observation after reset). Thread-safe: every call builds its own b2World.
+// the observation after reset). Thread-safe: every call builds its own b2World, unless `ghosts`
+// (kicker only) gives the persistent world to run in: the episode then also meets the balls of
+// earlier episodes there, and leaves its own.
 void run_episode(const EpisodeOptions& options, Policy& policy, Trace& trace,
-                 std::vector<float>* observations = nullptr);
+                 std::vector<float>* observations = nullptr, BallWorld* ghosts = nullptr);
 
 // Static facts of the scene an episode builds (after construction, before the reset step), for
 // the audit tests against the reference sources: body placement, mass properties, filters, joints.
@@ -142,6 +176,10 @@ constexpr ParamSpec kKickerParams[] = {
                "hull and ball positions normalised: x / 93.333, (y - 4) / 3 (entries 24..27; the paper's normal "
                "Kicker); excludes mix_scale"),
     param_int("max_steps", "500", 1, 1000000, "maximum policy steps per episode; trace keeps max_steps/20 rows"),
+    param_int("ghost_balls", "0", 0, 65536,
+              "the reference's ghost balls, a reference bug kept as an option (README.md): 0 = off; N = N persistent "
+              "worlds (the reference's worker processes), episode e of the run in world e mod N, every earlier "
+              "episode's ball staying in its world; runs with backend threads"),
 };
 constexpr ParamSpec kWalkerGaitParams[] = {
     param_string("contact_bins", "\"reference\"", "reference|corrected",
@@ -155,10 +193,15 @@ class BipedalEnvironment : public Environment {
   EnvironmentInfo info() const override;
   void rollout(const RolloutBatch& batch, Trace* traces) const override;
   bool draw_svg(const Trace& trace, std::ostream& out) const override;
+  void save(std::ostream& out) const override;
+  void load(std::istream& in) override;
   const EpisodeOptions& options() const noexcept { return options_; }
 
  private:
   EpisodeOptions options_;
+  // Kicker with ghost_balls = N: the N persistent worlds. The core runs a world's episodes in
+  // order, one call at a time (environment.hpp), so each element is only ever touched by one thread.
+  mutable std::vector<BallWorld> ghost_worlds_;
 };
 
 class WalkerEnvironment final : public BipedalEnvironment {

@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -89,8 +90,8 @@ TEST(Evaluator, OneAndThreeWorkersGiveIdenticalTracesAndCells) {
   std::vector<std::uint64_t> seeds(97, 0);
   runtime::ThreadEvaluator one(env, desc, shape, 1), three(env, desc, shape, 3);
   runtime::Evaluations a, b;
-  one.evaluate(params, seeds, a);
-  three.evaluate(params, seeds, b);
+  one.evaluate(params, seeds, 0, a);
+  three.evaluate(params, seeds, 0, b);
   expect_same(a, b);
   EXPECT_EQ(a.status[5], EvalStatus::kInvalidAction);
   EXPECT_EQ(a.cells[5], -1);
@@ -105,7 +106,7 @@ TEST(Evaluator, ScriptedEnvironmentKnownAnswer) {
   std::vector<std::uint64_t> seeds(1, 0);
   runtime::ThreadEvaluator ev(env, desc, shape, 1);
   runtime::Evaluations out;
-  ev.evaluate(params, seeds, out);
+  ev.evaluate(params, seeds, 0, out);
   EXPECT_EQ(out.cells[0], 25);
   EXPECT_EQ(out.steps[0], 50);
   EXPECT_EQ(out.fitness[0], 0.0);
@@ -123,9 +124,9 @@ TEST(Evaluator, ProcessesEqualThreads) {
   runtime::ProcessEvaluator procs(env, desc, shape, 3, 131, 60);
   EXPECT_EQ(procs.workers(), 3);
   runtime::Evaluations a, b;
-  serial.evaluate(params, seeds, a);
+  serial.evaluate(params, seeds, 0, a);
   for (int round = 0; round < 2; ++round) {  // reused shared memory and workers
-    procs.evaluate(params, seeds, b);
+    procs.evaluate(params, seeds, 0, b);
     expect_same(a, b);
   }
   EXPECT_EQ(b.status[7], EvalStatus::kInvalidAction);
@@ -144,8 +145,8 @@ TEST(Evaluator, ProcessesReadEachRowOnlyOnceItIsCopied) {
   for (std::uint64_t round = 0; round < 3; ++round) {
     const Matrix params = random_params(shape, 40, 100 + round);
     runtime::Evaluations a, b;
-    serial.evaluate(params, seeds, a);
-    procs.evaluate(params, seeds, b);
+    serial.evaluate(params, seeds, 0, a);
+    procs.evaluate(params, seeds, 0, b);
     expect_same(a, b);
   }
 }
@@ -161,13 +162,13 @@ TEST(Evaluator, DeadWorkerProcessIsReported) {
   ::kill(procs.worker_pid(1), SIGKILL);
   runtime::Evaluations out;
   try {
-    procs.evaluate(params, seeds, out);
+    procs.evaluate(params, seeds, 0, out);
     FAIL() << "expected a WorkerFailure";
   } catch (const runtime::WorkerFailure& e) {
     EXPECT_NE(std::string(e.what()).find("worker process 1 (pid"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("signal 9"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(procs.evaluate(params, seeds, out), runtime::WorkerFailure);
+  EXPECT_THROW(procs.evaluate(params, seeds, 0, out), runtime::WorkerFailure);
 }
 
 namespace {
@@ -211,7 +212,7 @@ TEST(Evaluator, ThreadsRethrowARolloutExceptionAfterEveryThreadStops) {
     const Eigen::Index bad = 7 + round * 9;
     params(bad, 0) = kFaultMarker;
     try {
-      threads.evaluate(params, seeds, out);
+      threads.evaluate(params, seeds, 0, out);
       FAIL() << "expected an EvaluationFault";
     } catch (const runtime::EvaluationFault& e) {
       EXPECT_EQ(e.first, static_cast<std::size_t>(bad));
@@ -222,8 +223,8 @@ TEST(Evaluator, ThreadsRethrowARolloutExceptionAfterEveryThreadStops) {
   }
   runtime::ThreadEvaluator serial(env, desc, shape, 1);
   runtime::Evaluations a;
-  serial.evaluate(params, seeds, a);
-  threads.evaluate(params, seeds, out);
+  serial.evaluate(params, seeds, 0, a);
+  threads.evaluate(params, seeds, 0, out);
   expect_same(a, out);
 }
 
@@ -240,7 +241,7 @@ TEST(Evaluator, WorkerProcessExceptionEqualsTheInProcessOne) {
   runtime::ThreadEvaluator serial(env, desc, shape, 1, kLabels);
   runtime::Evaluations out;
   try {
-    serial.evaluate(params, seeds, out);
+    serial.evaluate(params, seeds, 0, out);
   } catch (const runtime::EvaluationFault& e) {
     in_process = e.what();
     EXPECT_EQ(e.first, 37u);
@@ -249,7 +250,7 @@ TEST(Evaluator, WorkerProcessExceptionEqualsTheInProcessOne) {
   for (int workers : {1, 2}) {
     runtime::ProcessEvaluator procs(env, desc, shape, workers, 64, 60, kLabels);
     try {
-      procs.evaluate(params, seeds, out);
+      procs.evaluate(params, seeds, 0, out);
       FAIL() << "expected an EvaluationFault";
     } catch (const runtime::EvaluationFault& e) {
       EXPECT_EQ(std::string(e.what()), in_process);
@@ -271,7 +272,7 @@ TEST(Evaluator, CrashingRolloutNamesTheOffspring) {
   runtime::ProcessEvaluator procs(env, desc, shape, 1, 40, 60, kLabels);
   runtime::Evaluations out;
   try {
-    procs.evaluate(params, seeds, out);
+    procs.evaluate(params, seeds, 0, out);
     FAIL() << "expected an EvaluationFault";
   } catch (const runtime::EvaluationFault& e) {
     EXPECT_EQ(e.first, 23u);
@@ -294,7 +295,7 @@ TEST(Evaluator, ProcessRowBlocksEqualTheBatchAndNameTheOffspring) {
   std::vector<std::uint64_t> seeds(40, 0);
   runtime::ThreadEvaluator serial(env, desc, shape, 1);
   runtime::Evaluations whole, blocks;
-  serial.evaluate(params, seeds, whole);
+  serial.evaluate(params, seeds, 0, whole);
   runtime::ProcessEvaluator procs(env, desc, shape, 1, 16, 60, kLabels, "MPI rank 3 on node7: ");
   const std::size_t dims = desc.grid().shape.size();
   std::vector<double> records(16 * runtime::record_width(dims));
@@ -318,4 +319,94 @@ TEST(Evaluator, ProcessRowBlocksEqualTheBatchAndNameTheOffspring) {
         << e.what();
   }
   EXPECT_THROW(procs.evaluate_rows(params.data(), seeds.data(), 1, records.data(), 0), runtime::WorkerFailure);
+}
+
+namespace {
+// An environment with persistent worlds whose state is the history of its episodes: each world
+// folds every row it runs into a running hash, and the trace reports the world and that hash. Any
+// other order, a row in the wrong world or two rows of a world at once changes the answers.
+class HistoryEnvironment final : public Environment {
+ public:
+  explicit HistoryEnvironment(int worlds) : state_(static_cast<std::size_t>(worlds), 0) {}
+  EnvironmentInfo info() const override {
+    EnvironmentInfo i{6, 3, 1, "scripted"};
+    i.persistent_worlds = static_cast<int>(state_.size());
+    return i;
+  }
+  void rollout(const RolloutBatch& batch, Trace* traces) const override {
+    if (batch.world < 0 || batch.end - batch.begin != 1) throw std::logic_error("one row of one world per call");
+    std::uint64_t& h = state_[static_cast<std::size_t>(batch.world)];
+    const double first = batch.row(batch.begin)[0];
+    std::uint64_t bits;
+    std::memcpy(&bits, &first, sizeof bits);
+    h = (h ^ bits) * 1099511628211ULL;  // FNV-style fold: order-sensitive
+    Trace& t = traces[batch.begin];
+    t.main.reset(1);
+    t.main.push(0.0);
+    t.steps = batch.world;
+    t.fitness = static_cast<double>(h >> 12);
+  }
+  mutable std::vector<std::uint64_t> state_;  // touched by one thread per world (the core's promise)
+};
+}  // namespace
+
+// Episode e runs in world e mod N, each world's episodes in order: the histories are the same with
+// 1 or 3 threads, over batches that do not start at a multiple of N.
+TEST(Evaluator, PersistentWorldsRunEachWorldsEpisodesInOrderWhateverTheThreads) {
+  const ScriptedDescriptor desc;
+  const PolicyShape shape(6, {4}, 3);
+  const int worlds = 4;
+  HistoryEnvironment env1(worlds), env3(worlds), reference(worlds);
+  runtime::ThreadEvaluator one(env1, desc, shape, 1, {}, worlds), three(env3, desc, shape, 3, {}, worlds);
+  std::uint64_t episode = 0;
+  for (int batch = 0; batch < 3; ++batch) {
+    const Eigen::Index n = 7 + 2 * batch;  // 7, 9, 11 rows: batches start at episodes 0, 7, 16
+    const Matrix params = random_params(shape, n, 100 + batch);
+    const std::vector<std::uint64_t> seeds(static_cast<std::size_t>(n), 0);
+    runtime::Evaluations a, b;
+    one.evaluate(params, seeds, episode, a);
+    three.evaluate(params, seeds, episode, b);
+    expect_same(a, b);
+    // The same history computed by hand, sequentially in episode order.
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const auto e = episode + static_cast<std::uint64_t>(i);
+      EXPECT_EQ(a.steps[static_cast<std::size_t>(i)], static_cast<std::int32_t>(e % worlds)) << "episode " << e;
+      RolloutBatch b1{&shape,
+                      params.data(),
+                      seeds.data(),
+                      static_cast<std::size_t>(i),
+                      static_cast<std::size_t>(i) + 1,
+                      static_cast<int>(e % worlds)};
+      std::vector<Trace> traces(static_cast<std::size_t>(n));
+      reference.rollout(b1, traces.data());
+      EXPECT_EQ(a.fitness[static_cast<std::size_t>(i)], traces[static_cast<std::size_t>(i)].fitness) << "episode " << e;
+    }
+    episode += static_cast<std::uint64_t>(n);
+  }
+  EXPECT_EQ(env1.state_, reference.state_);
+  EXPECT_EQ(env3.state_, reference.state_);
+}
+
+// Such an environment runs only in qdrun's process: "auto" picks threads, processes are refused
+// naming the environment; the dry-run's pilot (fresh worlds) may use any backend.
+TEST(Evaluator, PersistentWorldsNeedTheThreadsBackend) {
+  const HistoryEnvironment env(2);
+  const ScriptedDescriptor desc;
+  const PolicyShape shape(6, {4}, 3);
+  runtime::EvaluatorSpec spec;
+  spec.labels.environment = "environment 'history'";
+  spec.backend = "auto";
+  EXPECT_STREQ(runtime::make_evaluator(spec, env, desc, shape)->backend(), "threads");
+  spec.backend = "processes";
+  try {
+    runtime::make_evaluator(spec, env, desc, shape);
+    FAIL() << "processes accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("environment 'history' keeps 2 persistent worlds"), std::string::npos)
+        << e.what();
+  }
+  spec.fresh_worlds = true;
+  spec.workers = 1;
+  spec.capacity = 4;
+  EXPECT_STREQ(runtime::make_evaluator(spec, env, desc, shape)->backend(), "processes");
 }

@@ -16,6 +16,17 @@
 //    where higher is better. Fitness decides only under [experiment] insertion = "fitness" (an
 //    offspring replaces an occupant when its fitness is strictly higher) and is written to
 //    archive.csv's objective column; the paper's coin-flip insertion ignores it. It must be finite.
+//  * Persistent worlds, the one exception to statelessness (info().persistent_worlds = N > 0): the
+//    environment keeps N worlds whose state carries from one episode to the next (to emulate a
+//    reference implementation that reuses one simulator per worker process). The core runs episode
+//    e of the run (counted from 0 over the whole run, loop 0 included) in world e mod N, one row
+//    per call with batch.world set, the episodes of a world in order and never two calls for the
+//    same world at once; calls for different worlds may run concurrently. Such environments run
+//    in qdrun's own process (backend "threads"). Their worlds are saved with every checkpoint
+//    (save()) and the run then continues from what load() rebuilds of that save, so an
+//    uninterrupted run and a resumed one go the same way even when a world cannot be restored bit
+//    for bit. Calls with world = -1 (replays, the dry-run's pilot) run in a fresh world and must
+//    leave the persistent ones untouched.
 #pragma once
 
 #include <qd/component.hpp>
@@ -34,6 +45,7 @@ struct EnvironmentInfo {
   int action_size = 0;
   int max_steps = 0;
   std::string default_descriptor;  // descriptor component used when the experiment names none
+  int persistent_worlds = 0;       // 0: stateless (the contract above); N > 0: N persistent worlds
 };
 
 // A batch of rollouts: rows [begin, end) of `params`, each with its own episode seed.
@@ -51,6 +63,9 @@ struct RolloutBatch {
   const std::uint64_t* episode_seeds = nullptr;  // N seeds (deterministic environments ignore them)
   std::size_t begin = 0;
   std::size_t end = 0;
+  // -1: a stateless rollout. Otherwise (environments with persistent worlds only) the world that the
+  // single row [begin, begin + 1) runs in, 0 <= world < info().persistent_worlds.
+  int world = -1;
 
   // The parameters of row i (P doubles).
   const double* row(std::size_t i) const noexcept { return params + i * shape->param_count(); }
@@ -70,6 +85,11 @@ class QD_EXPORT Environment : public Component {
   // Draws the scene and one rollout's trace as a standalone SVG document. Returns false when the
   // environment cannot draw.
   virtual bool draw_svg(const Trace& trace, std::ostream& out) const;
+
+  // Environments with persistent worlds only: the state of every world, for the checkpoint, and
+  // the worlds rebuilt from such a state (throw on a malformed one). The defaults do nothing.
+  virtual void save(std::ostream& out) const;
+  virtual void load(std::istream& in);
 };
 
 }  // namespace qd

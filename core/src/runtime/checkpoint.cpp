@@ -194,7 +194,13 @@ void CheckpointStore::save(const CheckpointCounters& counters, const std::string
   state::write_string(o, blob_of(*components.representation));
   state::write_string(o, blob_of(*components.mutator));
   state::write_string(o, blob_of(*components.initial));
+  const std::string worlds = components.environment ? blob_of(*components.environment) : std::string();
+  state::write_string(o, worlds);
   if (!o) throw SystemError("cannot serialise the checkpoint");
+  if (components.environment) {
+    std::istringstream back(worlds, std::ios::binary);
+    components.environment->load(back);
+  }
   job.checkpoint = o.str();
   append_raw(job.checkpoint, crc32c(job.checkpoint.data(), job.checkpoint.size()));
 
@@ -378,6 +384,21 @@ CheckpointStore::Loaded CheckpointStore::load(Archive& archive, Dataset& dataset
   blob(*components.representation, "representation");
   blob(*components.mutator, "mutator");
   blob(*components.initial, "initial sampler");
+  // Checkpoints of earlier versions end here: they hold no environment state.
+  std::string worlds;
+  if (i.peek() != std::char_traits<char>::eof()) worlds = state::read_string(i);
+  if (components.environment) {
+    if (worlds.empty())
+      throw StateError(file.string() +
+                       ": holds no state of the environment's persistent worlds (made by a qdrun "
+                       "without them, or with another environment setting)");
+    std::istringstream b(worlds, std::ios::binary);
+    try {
+      components.environment->load(b);
+    } catch (const std::exception& e) {
+      throw StateError(file.string() + ": environment state: " + e.what());
+    }
+  }
   return out;
 }
 

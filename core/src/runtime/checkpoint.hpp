@@ -3,8 +3,9 @@
 //
 // Files in the run directory:
 //  * checkpoint.bin: the counters, the resolved configuration, the sizes of the appended logs,
-//    the sizes of the two files below, and the state blobs of the representation, the mutator and
-//    the initial sampler. Replaced atomically, so it is always a committed checkpoint.
+//    the sizes of the two files below, and the state blobs of the representation, the mutator,
+//    the initial sampler and (last, absent in checkpoints of earlier versions) the environment's
+//    persistent worlds. Replaced atomically, so it is always a committed checkpoint.
 //  * archive-state-NNNNN.bin: the archive as an append-only log of slot records; each checkpoint
 //    appends the slots written since the previous one, and when more than half the log is stale a
 //    new generation starts with one record per elite (the old file is removed once the checkpoint
@@ -23,6 +24,7 @@
 #include "runtime/archive.hpp"
 
 #include <qd/dataset.hpp>
+#include <qd/environment.hpp>
 #include <qd/mutator.hpp>
 #include <qd/representation.hpp>
 
@@ -60,11 +62,13 @@ class CheckpointStore {
     std::uint32_t crc;
   };
 
-  // The components whose state a checkpoint carries.
+  // The components whose state a checkpoint carries. The environment's, only when it keeps
+  // persistent worlds (null otherwise).
   struct Components {
     Representation* representation;
     Mutator* mutator;
     Mutator* initial;
+    Environment* environment = nullptr;
   };
 
   CheckpointStore(std::filesystem::path dir, std::size_t param_count, std::size_t descriptor_dims);
@@ -75,6 +79,8 @@ class CheckpointStore {
   static bool exists(const std::filesystem::path& dir);
 
   // Queues a checkpoint of this state; waits for the previous one first and rethrows its error.
+  // An environment with persistent worlds is then reloaded from the state just saved, so that the
+  // run continues from exactly what a resume of this checkpoint would rebuild.
   void save(const CheckpointCounters& counters, const std::string& config, const std::vector<LogSize>& logs,
             Archive& archive, const Dataset& dataset, const Components& components);
   // Waits until the checkpoint in flight is committed; rethrows its write error.

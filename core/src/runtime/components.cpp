@@ -68,6 +68,9 @@ Owned<T> create(const Registry& registry, const ComponentConfig& cc, const Build
 }
 }  // namespace
 
+// A world's state lives in memory and in every checkpoint: far more than any emulated process count.
+constexpr int kMaxPersistentWorlds = 1 << 16;
+
 Components build_components(Experiment& ex, const Registry& registry) {
   Components c;
   BuildContext ctx;
@@ -76,6 +79,9 @@ Components build_components(Experiment& ex, const Registry& registry) {
   const EnvironmentInfo info = c.environment->info();
   if (info.observation_size <= 0 || info.action_size <= 0)
     throw PluginError("environment '" + ex.environment.type + "' reports no observation or action size");
+  if (info.persistent_worlds < 0 || info.persistent_worlds > kMaxPersistentWorlds)
+    throw PluginError("environment '" + ex.environment.type + "' reports " + std::to_string(info.persistent_worlds) +
+                      " persistent worlds (0 to " + std::to_string(kMaxPersistentWorlds) + " allowed)");
   c.shape = PolicyShape(info.observation_size, ex.settings.hidden, info.action_size);
   ctx.policy = &c.shape;
 

@@ -31,13 +31,15 @@ class TimedEvaluator final : public Evaluator {
     spec.capacity = static_cast<std::size_t>(s.initial_samples);
     spec.timeout_seconds = s.timeout_seconds;
     spec.labels = {c.environment_label, c.descriptor_label};
+    spec.fresh_worlds = true;  // the pilot prices episodes; persistent worlds stay untouched
     inner_ = make_evaluator(spec, *c.environment, *c.descriptor, c.shape);
   }
   int workers() const noexcept override { return 1; }
   const char* backend() const noexcept override { return inner_->backend(); }
-  void evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, Evaluations& out) override {
+  void evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, std::uint64_t first_episode,
+                Evaluations& out) override {
     const auto start = std::chrono::steady_clock::now();
-    inner_->evaluate(params, seeds, out);
+    inner_->evaluate(params, seeds, first_episode, out);
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     episodes += out.steps.size();
     steps += std::accumulate(out.steps.begin(), out.steps.end(), 0.0);
@@ -84,7 +86,7 @@ EpisodePilot run_episode_pilot(const ExperimentSettings& settings, Components& c
   for (std::size_t k = 0; k < n; ++k) seeds[k] = Rng::derive_seed(settings.seed, Stream::kEpisode, 1, 0, k);
   const double seconds = evaluator.seconds, steps = evaluator.steps;
   Evaluations evaluated;
-  evaluator.evaluate(offspring, seeds, evaluated);
+  evaluator.evaluate(offspring, seeds, 0, evaluated);
   p.offspring_episodes = evaluator.episodes - p.episodes;
   p.offspring_seconds = evaluator.seconds - seconds;
   p.offspring_mean_steps =

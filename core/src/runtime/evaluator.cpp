@@ -216,22 +216,24 @@ void RowEvaluator::run(const double* params, const std::uint64_t* seeds, std::si
 Evaluator::~Evaluator() = default;
 
 ThreadEvaluator::ThreadEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers,
-                                 PluginLabels labels)
+                                 PluginLabels labels, int persistent_worlds)
     : env_(env),
       desc_(desc),
       shape_(shape),
       labels_(std::move(labels)),
       dims_(desc.grid().shape.size()),
+      worlds_(persistent_worlds),
       pool_(workers) {}
 
 void ThreadEvaluator::evaluate_rows(const Matrix& params, const std::uint64_t* seeds, std::size_t begin,
-                                    std::size_t end, Evaluations& out) {
+                                    std::size_t end, Evaluations& out, int world) {
   RolloutBatch b;
   b.shape = &shape_;
   b.params = params.data();
   b.episode_seeds = seeds;
   b.begin = begin;
   b.end = end;
+  b.world = world;
   for (std::size_t i = begin; i < end; ++i) traces_[i].clear();
   guarded_rollout(env_, labels_.environment, b, traces_.data(), 0);
   for (std::size_t i = begin; i < end; ++i) {
@@ -254,8 +256,21 @@ std::size_t ThreadEvaluator::begin_batch(const Matrix& params, const std::vector
   return n;
 }
 
-void ThreadEvaluator::evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, Evaluations& out) {
+void ThreadEvaluator::evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds,
+                               std::uint64_t first_episode, Evaluations& out) {
   const std::size_t n = begin_batch(params, seeds, out);
+  if (worlds_ > 0) {
+    // Episode e runs in world e mod N: row i's world is (first_episode + i) mod N, and a world's
+    // rows run in order on whichever thread takes that world, so nothing depends on the threads.
+    const auto worlds = static_cast<std::size_t>(worlds_);
+    const std::size_t busy = std::min(worlds, n);
+    pool_.run(busy, [&](std::size_t k) {
+      const std::size_t world = (first_episode + k) % worlds;  // the world of row k, k < busy
+      for (std::size_t i = k; i < n; i += worlds)
+        evaluate_rows(params, seeds.data(), i, i + 1, out, static_cast<int>(world));
+    });
+    return;
+  }
   // Chunks keep dispatch at one virtual call per chunk while leaving enough chunks for dynamic
   // load balancing; with one worker the whole batch is one call.
   const std::size_t workers = static_cast<std::size_t>(pool_.size());
@@ -267,14 +282,21 @@ void ThreadEvaluator::evaluate(const Matrix& params, const std::vector<std::uint
   });
 }
 
-std::string resolve_backend(const std::string& requested) {
+std::string resolve_backend(const std::string& requested, int persistent_worlds) {
   if (requested != "auto") return requested;
+  if (persistent_worlds > 0) return "threads";
   return mpi_active() ? "mpi" : "processes";
 }
 
 std::unique_ptr<Evaluator> make_evaluator(const EvaluatorSpec& spec, const Environment& env, const Descriptor& desc,
                                           const PolicyShape& shape) {
-  const std::string backend = resolve_backend(spec.backend);
+  const int worlds = spec.fresh_worlds ? 0 : env.info().persistent_worlds;
+  const std::string backend = resolve_backend(spec.backend, worlds);
+  if (worlds > 0 && backend != "threads")
+    throw InputError("[evaluation] backend = \"" + backend + "\": " + spec.labels.environment + " keeps " +
+                     std::to_string(worlds) +
+                     " persistent worlds between episodes (one state per world, in episode order), which only "
+                     "the \"threads\" backend runs; use backend = \"threads\" or \"auto\"");
   if (backend == "mpi") {
     if (!mpi_built())
       throw InputError(
@@ -289,7 +311,7 @@ std::unique_ptr<Evaluator> make_evaluator(const EvaluatorSpec& spec, const Envir
   if (backend == "processes")
     return std::make_unique<ProcessEvaluator>(env, desc, shape, spec.workers, spec.capacity, spec.timeout_seconds,
                                               spec.labels);
-  return std::make_unique<ThreadEvaluator>(env, desc, shape, spec.workers, spec.labels);
+  return std::make_unique<ThreadEvaluator>(env, desc, shape, spec.workers, spec.labels, worlds);
 }
 
 #ifndef QD_WITH_MPI

@@ -118,7 +118,11 @@ class Evaluator {
   virtual ~Evaluator();
   virtual int workers() const noexcept = 0;
   virtual const char* backend() const noexcept = 0;
-  virtual void evaluate(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, Evaluations& out) = 0;
+  // Row i of `params` is episode first_episode + i of the run (episodes counted from 0 over the
+  // whole run, loop 0 included): that places it in its world when the environment keeps persistent
+  // worlds; stateless environments ignore it.
+  virtual void evaluate(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds,
+                        std::uint64_t first_episode, Evaluations& out) = 0;
 
   // MPI worker ranks: serve rank 0 until it stops the job. Other backends have no remote side.
   virtual void serve() {}
@@ -155,27 +159,32 @@ class WorkerPool {
   bool stop_ = false;
 };
 
-// Serial (1 worker) or local threads.
+// Serial (1 worker) or local threads. An environment with persistent worlds gets one row per call,
+// each world's rows in order on one thread at a time, the worlds spread over the threads.
 class ThreadEvaluator final : public Evaluator {
  public:
+  // persistent_worlds: the environment's (info().persistent_worlds), or 0 to run every row as a
+  // stateless rollout in a fresh world.
   ThreadEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers,
-                  PluginLabels labels = {});
+                  PluginLabels labels = {}, int persistent_worlds = 0);
 
   int workers() const noexcept override { return pool_.size(); }
   const char* backend() const noexcept override { return "threads"; }
-  void evaluate(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, Evaluations& out) override;
+  void evaluate(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, std::uint64_t first_episode,
+                Evaluations& out) override;
 
  private:
   // Checks the seeds, sizes `out` and the trace scratch for the batch; returns its row count.
   std::size_t begin_batch(const Matrix& params, const std::vector<std::uint64_t>& seeds, Evaluations& out);
   // Rollouts and descriptors of rows [begin, end); `out` is already sized for the batch.
   void evaluate_rows(const Matrix& params, const std::uint64_t* seeds, std::size_t begin, std::size_t end,
-                     Evaluations& out);
+                     Evaluations& out, int world = -1);
   const Environment& env_;
   const Descriptor& desc_;
   PolicyShape shape_;
   PluginLabels labels_;
   std::size_t dims_;
+  int worlds_;                 // the environment's persistent worlds (0: stateless)
   std::vector<Trace> traces_;  // one per offspring, reused across batches
   WorkerPool pool_;
 };
@@ -188,13 +197,16 @@ struct EvaluatorSpec {
                                  // rank, twice this plus 5 s (its own worker process is timed first)
   std::string status_file;       // written by the MPI backend when mpirun terminates the job
   PluginLabels labels;
+  bool fresh_worlds = false;  // every episode in a fresh world, even where the environment keeps
+                              // persistent ones (the dry-run's pilot): any backend may run them
 };
 
 // The backend "auto" resolves to mpi when launched by mpirun, else processes: supervised worker
 // processes, one or more, so a crash, exit() or hang of plugin code never takes down the process
 // that owns the run directory (and they are faster than threads for Box2D on this machine).
-// "threads" runs rollouts inside qdrun (with one worker: serially, unsupervised).
-std::string resolve_backend(const std::string& requested);
+// "threads" runs rollouts inside qdrun (with one worker: serially, unsupervised). An environment
+// with persistent worlds runs only with "threads" ("auto" resolves to it; `persistent_worlds` > 0).
+std::string resolve_backend(const std::string& requested, int persistent_worlds = 0);
 std::unique_ptr<Evaluator> make_evaluator(const EvaluatorSpec& spec, const Environment& env, const Descriptor& desc,
                                           const PolicyShape& shape);
 

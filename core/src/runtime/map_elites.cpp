@@ -125,7 +125,7 @@ void MapElites::iterate(int loop, int it) {
 
 void MapElites::evaluate(int loop, int it) {
   try {
-    evaluator_.evaluate(offspring_.theta, seeds_, evaluated_);
+    evaluator_.evaluate(offspring_.theta, seeds_, evaluations_, evaluated_);
     checks_.evaluations(evaluated_, loop, it);
   } catch (const EvaluationFault& f) {
     const std::string which = f.first == f.last

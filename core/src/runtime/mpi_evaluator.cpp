@@ -270,7 +270,8 @@ class MpiEvaluator final : public Evaluator {
   int workers() const noexcept override { return g_size; }
   const char* backend() const noexcept override { return "mpi"; }
 
-  void evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, Evaluations& out) override {
+  void evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, std::uint64_t /*first_episode*/,
+                Evaluations& out) override {
     const auto n = static_cast<std::size_t>(params.rows());
     QD_CHECK(seeds.size() == n, "one episode seed per row");
     QD_CHECK(g_rank == 0, "only rank 0 runs the loop");

@@ -212,7 +212,8 @@ void ProcessEvaluator::fail(const std::string& message, std::uint64_t current) {
   throw EvaluationFault(message, row, row);
 }
 
-void ProcessEvaluator::evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, Evaluations& out) {
+void ProcessEvaluator::evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds,
+                                std::uint64_t /*first_episode*/, Evaluations& out) {
   const auto n = static_cast<std::size_t>(params.rows());
   QD_CHECK(seeds.size() == n, "one episode seed per row");
   QD_CHECK(static_cast<std::size_t>(params.cols()) == P_, "parameter rows of the policy's size");

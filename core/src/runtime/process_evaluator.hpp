@@ -36,7 +36,8 @@ class ProcessEvaluator final : public Evaluator {
 
   int workers() const noexcept override { return static_cast<int>(children_.size()); }
   const char* backend() const noexcept override { return "processes"; }
-  void evaluate(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, Evaluations& out) override;
+  void evaluate(const Matrix& params, const std::vector<std::uint64_t>& episode_seeds, std::uint64_t first_episode,
+                Evaluations& out) override;
   // Rows [0, rows) of the row-major block `params` (rows x P) with their seeds -> rows packed records
   // (record_width); they are offspring first_row, first_row + 1, ... of the batch, which is how a
   // fault names them. Same faults as evaluate().

@@ -165,8 +165,7 @@ bool may_change_on_resume(const std::string& key) {
 void Run::load_checkpoint(bool resuming) {
   const ExperimentSettings& s = ex_.settings;
   try {
-    const CheckpointStore::Loaded loaded =
-        checkpoints_.load(archive_, dataset_, {c_.representation.get(), c_.mutator.get(), c_.initial.get()}, resuming);
+    const CheckpointStore::Loaded loaded = checkpoints_.load(archive_, dataset_, checkpointed_components(), resuming);
     const CheckpointCounters& n = loaded.counters;
     if (resuming) {
       // The configuration stored in the checkpoint is the truth; config.toml is a readable copy.
@@ -235,7 +234,12 @@ bool Run::run() {
 void Run::save_checkpoint(int loop) {
   const CheckpointCounters counters{loop, loop_.evaluations(), wall_seconds(), train_seconds_};
   checkpoints_.save(counters, ex_.resolved_toml, dir_.log_sizes(log_names()), archive_, dataset_,
-                    {c_.representation.get(), c_.mutator.get(), c_.initial.get()});
+                    checkpointed_components());
+}
+
+CheckpointStore::Components Run::checkpointed_components() const {
+  Environment* worlds = c_.environment->info().persistent_worlds > 0 ? c_.environment.get() : nullptr;
+  return {c_.representation.get(), c_.mutator.get(), c_.initial.get(), worlds};
 }
 
 double Run::wall_seconds() const {

@@ -88,6 +88,7 @@ class Run final : private LoopObserver {
   void load_checkpoint(bool resuming);
   std::vector<std::string> log_names() const;
   void save_checkpoint(int loop);
+  CheckpointStore::Components checkpointed_components() const;
   void write_provenance() const;
   void report(int loop, int iteration, bool loop_finished, const std::string& note = {});
   double wall_seconds() const;

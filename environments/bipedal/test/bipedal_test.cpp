@@ -734,6 +734,133 @@ TEST(BipedalKnownAnswer, KickerCellDistributionOf200RandomPolicies) {
       << describe(d);
 }
 
+// ---- Ghost balls (the reference's kicker keeps every earlier episode's ball) ---------------------
+
+Episode run_in(qd::bipedal::BallWorld& world, const std::vector<double>& theta) {
+  qd::bipedal::warm_up_box2d();
+  EpisodeOptions options;
+  options.task = Task::kKicker;
+  qd::Policy policy(shape_for(Task::kKicker));
+  policy.load(theta.data());
+  Episode e;
+  qd::bipedal::run_episode(options, policy, e.trace, &e.observations, &world);
+  return e;
+}
+
+// The first random policy (fixed stream) that moves the ball more than one unit in a fresh world.
+std::vector<double> kicking_policy() {
+  for (std::uint64_t key = 0;; ++key) {
+    std::vector<double> theta = random_params(Task::kKicker, 1000 + key);
+    const Episode e = run(Task::kKicker, theta);
+    if (e.trace.main.last()[0] > qd::bipedal::kBallStartX + 1.0) return theta;
+  }
+}
+
+bool same_trace(const qd::Trace& a, const qd::Trace& b) {
+  return a.steps == b.steps && a.main.data == b.main.data && a.aux.data == b.aux.data && a.events == b.events;
+}
+
+// A robot that never reaches the ball meets no ghost (balls do not collide with balls, the lidar
+// ignores them): it ends as in a fresh world, in the same cell with the same termination, and each
+// episode leaves its ball at rest on the start position. Its trajectory may still differ in the
+// last digits, as in the reference: the extra bodies change the broad-phase tree, hence the order
+// in which Box2D creates and solves the robot's ground contacts.
+TEST(BipedalGhostBalls, AnUntouchedBallStaysAndChangesNoCell) {
+  const std::vector<double> limp(shape_for(Task::kKicker).param_count(), 0.0);
+  const Episode fresh = run(Task::kKicker, limp);
+  double fresh_values[2], values[2];
+  const std::int64_t fresh_cell = qd::bipedal::kicker_ball_cell(fresh.trace, fresh_values);
+  qd::bipedal::BallWorld world;
+  EXPECT_EQ(world.balls(), 1u);  // the environment constructor's reset leaves the first one
+  for (std::size_t k = 1; k <= 3; ++k) {
+    const Episode e = run_in(world, limp);
+    EXPECT_EQ(qd::bipedal::kicker_ball_cell(e.trace, values), fresh_cell) << "episode " << k;
+    EXPECT_EQ(why(e.trace), why(fresh.trace)) << "episode " << k;
+    EXPECT_EQ(e.trace.main.data, fresh.trace.main.data) << "episode " << k;  // the ball's own path
+    EXPECT_EQ(world.balls(), k + 1);
+  }
+}
+
+// A kick moves the ball and the ghost stacked on its start position together (a heavier ball):
+// the kicked ball ends elsewhere than in a fresh world, and both balls end off the start.
+TEST(BipedalGhostBalls, AKickMovesTheStackAtTheStart) {
+  const std::vector<double> kicker = kicking_policy();
+  const double fresh_x = run(Task::kKicker, kicker).trace.main.last()[0];
+  qd::bipedal::BallWorld world;
+  const Episode e = run_in(world, kicker);
+  EXPECT_NE(e.trace.main.last()[0], fresh_x);
+  std::stringstream state;
+  world.save(state);
+  std::uint32_t tag;
+  std::uint64_t n;
+  state.read(reinterpret_cast<char*>(&tag), sizeof tag).read(reinterpret_cast<char*>(&n), sizeof n);
+  ASSERT_EQ(n, 2u);  // the constructor's ball and this episode's
+  for (std::uint64_t k = 0; k < n; ++k) {
+    float f[6];
+    std::uint8_t awake;
+    state.read(reinterpret_cast<char*>(f), sizeof f).read(reinterpret_cast<char*>(&awake), 1);
+    EXPECT_GT(f[0], qd::bipedal::kBallStartX + 0.1) << "ball " << k;
+  }
+}
+
+// The core reloads the worlds from every checkpoint: a world saved and loaded twice continues as
+// one loaded once (what a resumed run does), episode for episode.
+TEST(BipedalGhostBalls, AReloadedWorldContinuesAsAResumedOne) {
+  const std::vector<double> kicker = kicking_policy();
+  qd::bipedal::BallWorld original;
+  for (std::uint64_t k = 0; k < 3; ++k) run_in(original, k == 1 ? kicker : random_params(Task::kKicker, 50 + k));
+  std::stringstream saved;
+  original.save(saved);
+  const std::string bytes = saved.str();
+  qd::bipedal::BallWorld resumed;
+  std::istringstream a(bytes), b(bytes);
+  original.load(a);
+  resumed.load(b);
+  EXPECT_EQ(resumed.balls(), 4u);
+  for (std::uint64_t k = 0; k < 3; ++k) {
+    const std::vector<double> theta = k == 0 ? kicker : random_params(Task::kKicker, 60 + k);
+    EXPECT_TRUE(same_trace(run_in(original, theta).trace, run_in(resumed, theta).trace)) << "episode " << k;
+  }
+  std::stringstream s1, s2;
+  original.save(s1);
+  resumed.save(s2);
+  EXPECT_EQ(s1.str(), s2.str());
+  std::istringstream junk("not a world");
+  EXPECT_THROW(resumed.load(junk), qd::StateError);
+}
+
+// The environment: ghost_balls = N is N persistent worlds for the core; world -1 (replays, the
+// dry-run's pilot) is a fresh world; a world out of range or several rows per call is refused.
+TEST(BipedalGhostBalls, EnvironmentKeysAndWorlds) {
+  qd::Config cfg = qd::defaults_of(qd::bipedal::kKickerParams, "environment");
+  EXPECT_EQ(qd::bipedal::KickerEnvironment(cfg, {}).info().persistent_worlds, 0);
+  for (const qd::ParamSpec& p : qd::bipedal::kWalkerParams) EXPECT_STRNE(p.key, "ghost_balls");
+  cfg.set_int("ghost_balls", 3);
+  qd::bipedal::KickerEnvironment env(cfg, {});
+  EXPECT_EQ(env.info().persistent_worlds, 3);
+  const qd::PolicyShape shape = shape_for(Task::kKicker);
+  const std::vector<double> theta = kicking_policy();
+  const std::uint64_t seed = 0;
+  std::vector<qd::Trace> traces(2);
+  qd::RolloutBatch batch{&shape, theta.data(), &seed, 0, 1, -1};
+  env.rollout(batch, traces.data());
+  EXPECT_TRUE(same_trace(traces[0], run(Task::kKicker, theta).trace));
+  batch.world = 2;
+  env.rollout(batch, traces.data());
+  EXPECT_NE(traces[0].main.last()[0], run(Task::kKicker, theta).trace.main.last()[0]);
+  std::stringstream state;
+  env.save(state);
+  qd::bipedal::KickerEnvironment other(cfg, {});
+  other.load(state);
+  batch.world = 3;
+  EXPECT_THROW(env.rollout(batch, traces.data()), std::invalid_argument);
+  cfg.set_int("ghost_balls", 2);
+  qd::bipedal::KickerEnvironment two(cfg, {});
+  std::stringstream again;
+  env.save(again);
+  EXPECT_THROW(two.load(again), qd::StateError);
+}
+
 TEST(BipedalEnvironment, InfoAndSvg) {
   const qd::bipedal::BipedalEnvironment walker(Task::kWalker,
                                                qd::defaults_of(qd::bipedal::kWalkerParams, "environment"));
