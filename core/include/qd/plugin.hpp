@@ -41,7 +41,8 @@ namespace qd {
 
 // 4: RolloutBatch::params is a row-major `const double*` (was `const Matrix*`).
 // 5: Representation::estimate_fit_seconds (a new virtual member).
-inline constexpr std::uint32_t kPluginAbiVersion = 5;
+// 6: GridSpec::labels (names of a descriptor's bins, written to grid.toml).
+inline constexpr std::uint32_t kPluginAbiVersion = 6;
 
 enum class Kind : std::uint32_t { kEnvironment = 1, kDescriptor = 2, kRepresentation = 3, kMutator = 4 };
 QD_EXPORT const char* to_string(Kind kind) noexcept;
