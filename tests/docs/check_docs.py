@@ -12,8 +12,9 @@
     source file or script, qdplot or qdreport, or in qdrun's --list and --describe output.
   * The algorithm table, share/algorithms.toml, is the only one: the README's table lists its
     entries with the same representation and mutator, every experiments/<variant>/<name>.toml of the
-    paper's variants holds the (representation, mutator, initial) of its entry, and qdplot and
-    qdreport hold no algorithm names of their own.
+    paper's variants holds the (representation, mutator, initial) of its entry, and the tools
+    (share/qdplot, qdreport, qdresults and the qdtools package) hold no algorithm names of their own.
+  * The tutorial (docs/tutorial.md) is at most 150 lines; tests/docs/tutorial.sh runs its commands.
 """
 import re
 import subprocess
@@ -53,10 +54,14 @@ def check_readme(root):
                          ("scripts/test.sh", "the test command")):
         if needle not in text:
             fail(f"README.md does not mention {what} ({needle})")
-    for name in ("LICENSE", "CITATION.cff", "docs/README.md", "docs/user-guide.md", "docs/plugin-guide.md",
-                 "docs/performance.md", "docs/design.md", "docs/reference-behaviour.md"):
+    for name in ("LICENSE", "CITATION.cff", "CHANGELOG.md", "docs/README.md", "docs/tutorial.md", "docs/user-guide.md",
+                 "docs/plugin-guide.md", "docs/performance.md", "docs/performance-history.md", "docs/design.md",
+                 "docs/reference-behaviour.md", "results/README.md", "examples/README.md"):
         if not (root / name).is_file():
             fail(f"{name} is missing")
+    tutorial = root / "docs" / "tutorial.md"
+    if tutorial.is_file() and tutorial.read_text().count("\n") > 150:
+        fail(f"docs/tutorial.md has {tutorial.read_text().count(chr(10))} lines (at most 150: a newcomer finishes it)")
 
 
 LINK = re.compile(r"\]\(([^)\s]+)\)")
@@ -83,7 +88,7 @@ def check_links_and_blocks(root):
 
 def check_spec_references(root):
     targets = list(files(root, "*.md")) + list(files(root / "experiments", "*.toml"))
-    targets += [root / "share" / "qdplot", root / "share" / "qdreport"]
+    targets += [root / "share" / name for name in ("qdplot", "qdreport", "qdresults")]
     # Code comments too: a reader of the sources cannot follow a reference to a document they lack.
     for pattern in ("*.cpp", "*.hpp", "*.py", "*.sh", "CMakeLists.txt"):
         targets += [p for p in files(root, pattern) if p.resolve() != Path(__file__).resolve()]
@@ -130,11 +135,13 @@ def check_algorithm_table(root):
             if got != want:
                 fail(f"experiments/{d.name}/{stem}.toml: (representation, mutator, initial) {got}, "
                      f"share/algorithms.toml {want}")
-    for script in ("qdplot", "qdreport"):
-        text = (root / "share" / script).read_text()
+    tools = [root / "share" / name for name in ("qdplot", "qdreport", "qdresults")]
+    for script in tools + sorted((root / "share" / "qdtools").rglob("*.py")):
+        text = script.read_text()
         for name in by_name:
             if re.search(r"[\"']" + re.escape(name) + r"[\"']", text):
-                fail(f"share/{script} spells the algorithm name '{name}' itself (read it from algorithms.toml)")
+                fail(f"{script.relative_to(root)} spells the algorithm name '{name}' itself (read it from "
+                     "algorithms.toml)")
 
 
 def check_cli(qdrun):

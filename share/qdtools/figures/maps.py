@@ -126,17 +126,22 @@ def draw(out, run, grid, archive, color):
             image = ax.imshow(img[k], origin="lower", cmap=cmap, norm=norm, interpolation="nearest", aspect="equal")
             filled = int(np.count_nonzero(~np.isnan(img[k])))
             ax.set_title(f"{names[0]} {grid.bin_label(0, k)} ({filled})", fontsize=7, pad=2)
-            value_ticks(ax.xaxis, grid, h[0], label=k // pc == pr - 1 or k + pc >= panels)
-            value_ticks(ax.yaxis, grid, v[0], label=k % pc == 0)
+            bottom, left = k + pc >= panels, k % pc == 0
+            value_ticks(ax.xaxis, grid, h[0], label=bottom)
+            value_ticks(ax.yaxis, grid, v[0], label=left)
+            if bottom:
+                ax.set_xlabel(names[h[0]], fontsize=7, labelpad=1)
+            if left:
+                ax.set_ylabel(names[v[0]], fontsize=7, labelpad=1)
             data["axes"].append({"panel": k, "rows": nrows, "cols": ncols})
             used.append(ax)
         data["per_panel"] = [int(np.count_nonzero(~np.isnan(img[k]))) for k in range(panels)]
         data["filled"] = int(np.count_nonzero(~np.isnan(img)))
-        fig.text(0.5, 0.075, f"one panel per bin of {names[0]} (its label and elites above each); in each, "
+        fig.text(0.5, 0.065, f"one panel per bin of {names[0]} (its label and elites above each); in each, "
                  f"{names[h[0]]} to the right ({grid.describe_dimension(h[0])}) and {names[v[0]]} up "
                  f"({grid.describe_dimension(v[0])})", ha="center", fontsize=8)
-        fig.subplots_adjust(left=0.05, right=0.9 if fitness else 0.98, top=0.86, bottom=0.14, wspace=0.25,
-                            hspace=0.45)
+        fig.subplots_adjust(left=0.06, right=0.9 if fitness else 0.98, top=0.86, bottom=0.16, wspace=0.3,
+                            hspace=0.55)
     else:
         img = np.full((nrows, ncols), np.nan)
         img[row, col] = values
@@ -162,7 +167,8 @@ def draw(out, run, grid, archive, color):
                 text += f" (cells drawn {shown / ratio:.2g}x wider than high)"
             label(text, fontsize=7)
         used = [ax]
-        fig.subplots_adjust(left=0.1, right=0.88 if fitness else 0.97, top=0.86, bottom=0.27)
+        height = fig.get_size_inches()[1]  # room below for the axis label (two lines) and the legend
+        fig.subplots_adjust(left=0.1, right=0.88 if fitness else 0.97, top=1 - 0.55 / height, bottom=1.25 / height)
     handles = [Patch(facecolor="white", edgecolor="0.5", linewidth=0.5)]
     labels = [f"empty cell ({grid.cells - len(cells)})"]
     if fitness:

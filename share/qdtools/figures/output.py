@@ -47,10 +47,11 @@ class Output:
                 entry.update(width_pt=round(w * 72, 3), height_pt=round(h * 72, 3))
             self.manifest.append(entry)
             print(f"qdplot: wrote {self.dir / name}")
-        plt.close(fig)
         if self.dump:
+            data = dict(data, figure=describe(fig))
             with open(self.dir / f"{stem}.json", "w") as f:
                 json.dump(data, f, indent=1, allow_nan=True)
+        plt.close(fig)
 
     def finish(self):
         """Writes qdplot.json: this invocation's files, then those an earlier one listed that are still
@@ -67,6 +68,29 @@ class Output:
         tmp = path.with_suffix(".tmp")
         tmp.write_text(json.dumps({"dpi": self.dpi, "files": self.manifest + kept}, indent=1) + "\n")
         tmp.replace(path)
+
+
+def describe(fig):
+    """What a reader of the figure is told, as drawn: the legends' entries, the colour bars' labels,
+    and per plotting axes its labels and how many of its ticks carry a label (tests check that
+    every figure labels its axes and explains its colours)."""
+    fig.canvas.draw()
+    out = {"legends": [t.get_text() for leg in fig.legends for t in leg.get_texts()], "colorbars": [], "axes": []}
+    for ax in fig.axes:
+        if getattr(ax, "_colorbar", None) is not None:
+            out["colorbars"].append(ax.get_ylabel() or ax.get_xlabel())
+            continue
+        if not ax.get_visible() or not ax.axison:
+            continue
+        if ax.get_legend():
+            out["legends"] += [t.get_text() for t in ax.get_legend().get_texts()]
+
+        def labelled(axis):
+            return sum(1 for t in axis.get_ticklabels() if t.get_text() and t.get_visible())
+
+        out["axes"].append({"title": ax.get_title(), "xlabel": ax.get_xlabel(), "ylabel": ax.get_ylabel(),
+                            "xticks": labelled(ax.xaxis), "yticks": labelled(ax.yaxis)})
+    return out
 
 
 def write_compact_png(fig, path, dpi):
