@@ -14,9 +14,10 @@ import subprocess
 from pathlib import Path
 
 from .figures.output import MANIFEST, compact_png, read_manifest
-from .runs import csv_header, is_run_dir, open_text
+from .report import study, summary
+from .runs import Run, csv_header, is_run_dir, open_text
 
-KEEP = ("config.toml", "provenance.toml", "grid.toml", "status", "training.csv", "pca.csv")
+KEEP = ("config.toml", "provenance.toml", "grid.toml", "status", "training.csv", "pca.csv", "summary.toml")
 COMPRESS = ("metrics.csv",)
 # Figures a study's files cannot give again (they need parameters, checkpoints or per-epoch logs):
 # copied as drawn. Coverage and maps are drawn again from the kept files (qdreport --regenerate).
@@ -116,8 +117,14 @@ def machine_paths(text, replacements):
 
 
 def slim_run(src, dst, replacements=()):
-    """Copies what a study keeps of the run directory src to dst."""
+    """Copies what a study keeps of the run directory src to dst, with summary.toml holding the
+    quantities the report needs from files the study does not keep (report/summary.py, KEPT)."""
     dst.mkdir(parents=True, exist_ok=True)
+    values = summary.kept(Run(src)) if summary.KEPT else {}
+    if values:
+        (dst / summary.SUMMARY).write_text("# From the full run, which kept files this copy does not "
+                                            "(report/summary.py, KEPT)\n" +
+                                            "".join(f"{k} = {study.toml_value(v)}\n" for k, v in values.items()))
     for name in KEEP:
         if (src / name).exists():
             text = (src / name).read_text()

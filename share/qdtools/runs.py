@@ -102,8 +102,7 @@ class Grid:
         return self.labels[d][k] if d < len(self.labels) and self.labels[d] else str(k)
 
     def describe_dimension(self, d):
-        text = f"{self.shape[d]} bins over [{self.lower[d]:g}, {self.upper[d]:g}]"
-        return text
+        return f"{self.shape[d]} bins over [{self.lower[d]:g}, {self.upper[d]:g}]"
 
 
 def read_grid(run_dir):

@@ -9,6 +9,7 @@ from unittest import mock
 import fixtures
 
 from qdtools import results, runs
+from qdtools.report import summary
 
 
 def git(repo, *args):
@@ -84,6 +85,20 @@ class Slim(unittest.TestCase):
         first = (root / "slim" / "metrics.csv.gz").read_bytes()
         results.slim_run(run, root / "again")
         self.assertEqual((root / "again" / "metrics.csv.gz").read_bytes(), first)  # reproducible bytes
+
+    def test_quantities_of_the_full_run_are_kept_in_summary_toml(self):
+        root = fixtures.tmpdir(self)
+        run = fixtures.write_run(root / "full", archive=[(1, 0.5, 0.1, 0.2), (4, 0.7, 0.3, 0.4)])
+
+        def largest_parameter(r):  # needs the parameters, which a study does not keep
+            rows = runs.read_csv(r.path / "archive.csv")
+            return {"largest_parameter": max(abs(v) for row in rows for k, v in row.items() if k.startswith("solution_"))}
+
+        with mock.patch.object(summary, "KEPT", [largest_parameter]):
+            results.slim_run(run, root / "slim")
+            self.assertEqual(runs.read_toml(root / "slim" / "summary.toml"), {"largest_parameter": 0.5})
+            self.assertEqual(summary.summarise(runs.Run(root / "slim"))["largest_parameter"], 0.5)
+            self.assertEqual(summary.summarise(runs.Run(run))["largest_parameter"], 0.5)
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ import matplotlib.colors
 import numpy as np
 from matplotlib.patches import Patch
 
-from .. import tables
+from .. import ToolError, tables
 from .common import legend_below, run_title, slug
 
 MAX_PANELS = 36
@@ -71,7 +71,6 @@ def plot(out, run, colors=("occupancy", "fitness")):
         return
     cells = archive.cells
     if cells.size and (cells.min() < 0 or cells.max() >= grid.cells):
-        from .. import ToolError
         raise ToolError(f"{run.path / 'archive.csv'}: a cell index outside the {grid.cells} cells of grid.toml")
     if "occupancy" in colors:
         draw(out, run, grid, archive, "occupancy")
@@ -127,8 +126,8 @@ def draw(out, run, grid, archive, color):
             filled = int(np.count_nonzero(~np.isnan(img[k])))
             ax.set_title(f"{names[0]} {grid.bin_label(0, k)} ({filled})", fontsize=7, pad=2)
             bottom, left = k + pc >= panels, k % pc == 0
-            value_ticks(ax.xaxis, grid, h[0], label=bottom)
-            value_ticks(ax.yaxis, grid, v[0], label=left)
+            value_ticks(ax.xaxis, grid, h[0], label=bottom, most=4)
+            value_ticks(ax.yaxis, grid, v[0], label=left, most=4)
             if bottom:
                 ax.set_xlabel(names[h[0]], fontsize=7, labelpad=1)
             if left:
@@ -154,18 +153,22 @@ def draw(out, run, grid, archive, color):
         data["filled"] = int(np.count_nonzero(~np.isnan(img)))
         if shown != ratio:
             data["stretched"] = round(ratio / shown, 3)
-        for dims, axis, line, label in ((h, ax.xaxis, ax.axvline, ax.set_xlabel), (v, ax.yaxis, ax.axhline,
-                                                                                    ax.set_ylabel)):
+        captions = []
+        for dims, axis, line, label, what in ((h, ax.xaxis, ax.axvline, ax.set_xlabel, "columns"),
+                                              (v, ax.yaxis, ax.axhline, ax.set_ylabel, "rows")):
             if not dims:
                 axis.set_ticks([])
                 label("(one row)", fontsize=7)
                 continue
-            text = nested_ticks(axis, line, grid, dims)
-            if dims is v and shown != ratio and ratio > 1:
-                text += f" (cells drawn {ratio / shown:.2g}x higher than wide)"
-            elif dims is h and shown != ratio and ratio < 1:
-                text += f" (cells drawn {shown / ratio:.2g}x wider than high)"
-            label(text, fontsize=7)
+            short, full = nested_ticks(axis, line, grid, dims)
+            label(short, fontsize=7)
+            if len(dims) > 1:
+                captions.append(f"{what}: {full}")
+        if shown != ratio:
+            captions.append(f"cells drawn {ratio / shown:.2g}x higher than wide" if ratio > 1 else
+                            f"cells drawn {shown / ratio:.2g}x wider than high")
+        if captions:
+            fig.text(0.5, 0.095, "; ".join(captions), ha="center", fontsize=7, wrap=True)
         used = [ax]
         height = fig.get_size_inches()[1]  # room below for the axis label (two lines) and the legend
         fig.subplots_adjust(left=0.1, right=0.88 if fitness else 0.97, top=1 - 0.55 / height, bottom=1.25 / height)
@@ -206,16 +209,20 @@ def value_ticks(axis, grid, d, label=True, most=6):
 
 def nested_ticks(axis, line, grid, dims):
     """Ticks of an image axis that nests `dims` (outer first): the outer dimension's values (at bin
-    edges) or bin labels, separator lines between its blocks; returns the axis label."""
+    edges) or bin labels, separator lines between its blocks. Returns the axis label and, for a
+    nested axis, the full description of its dimensions."""
     shape, names = grid.shape, grid.names
     outer, inner = dims[0], math.prod(shape[d] for d in dims[1:])
     if inner == 1:
         value_ticks(axis, grid, outer)
-        return f"{names[outer]} ({grid.describe_dimension(outer)})"
+        text = f"{names[outer]} ({grid.describe_dimension(outer)})"
+        return text, text
     step = max(1, math.ceil(shape[outer] / 10))  # at most ~10 labelled blocks
     axis.set_ticks([k * inner + (inner - 1) / 2 for k in range(0, shape[outer], step)])
     axis.set_ticklabels([grid.bin_label(outer, k) for k in range(0, shape[outer], step)], fontsize=6)
     for k in range(1, shape[outer]):  # separators between the outer dimension's blocks
         line(k * inner - 0.5, color="0.8", linewidth=0.3)
-    return (f"{names[outer]} bin ({grid.describe_dimension(outer)})\ninside each block: " +
-            ", ".join(f"{names[d]} ({shape[d]} bins over [{grid.lower[d]:g}, {grid.upper[d]:g}])" for d in dims[1:]))
+    short = f"{names[outer]} bin, then " + ", ".join(names[d] for d in dims[1:])
+    full = (f"blocks of {names[outer]} ({grid.describe_dimension(outer)}), inside each " +
+            ", ".join(f"{names[d]} ({grid.describe_dimension(d)})" for d in dims[1:]))
+    return short, full

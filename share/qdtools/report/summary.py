@@ -4,10 +4,17 @@ as the full runs did.
 
 A summary is a dict. summarise() fills the core fields below, then calls every function of FIELDS,
 each adding its own keys: a new per-run quantity (say, the autoencoder's epochs per loop from
-training.csv) is one function appended to FIELDS and one column in sections.py."""
+training.csv) is one function appended to FIELDS and one column in sections.py.
+
+A quantity that needs files a study in results/ does not keep (the elites' parameters, per-epoch
+logs) goes into KEPT instead: qdresults computes it from the full run when it copies the run and
+stores it in the copy's summary.toml, from which summarise() reads it back."""
 import math
 
 from .. import tables
+from ..runs import locate, read_toml
+
+SUMMARY = "summary.toml"  # in a study's run directory: the KEPT quantities of the full run
 
 
 def core_fields(run):
@@ -61,12 +68,25 @@ def loop_rates(run):
 
 
 FIELDS = [mixing_last_loop, loop_rates]
+KEPT = []  # functions of a full run returning {name: number or text}, stored for studies
+
+
+def kept(run):
+    """The KEPT quantities of a run: from its summary.toml when it has one (a study's copy), else
+    computed from its files."""
+    if locate(run.path / SUMMARY):
+        return read_toml(run.path / SUMMARY)
+    values = {}
+    for field in KEPT:
+        values.update(field(run))
+    return values
 
 
 def summarise(run):
     s = core_fields(run)
     for field in FIELDS:
         s.update(field(run))
+    s.update(kept(run))
     return s
 
 
