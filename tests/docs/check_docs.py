@@ -19,12 +19,13 @@
 import re
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 
 sys.dont_write_bytecode = True  # nothing written into the source tree
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "experiments"))
 from paper_table import load as load_experiment  # noqa: E402  (an experiment file with its includes, as qdrun merges them)
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent.parent / "share"))
+from qdtools import tables  # noqa: E402  (the tools' reader of share/'s tables)
 
 SPEC = re.compile(r"\bspec(?:\s+sections?)?\s*(?:§\s*)?\d+(?:\.\d+)*|\(spec\)|poms-reference\.md", re.IGNORECASE)
 SKIP_DIRS = {".git", "__pycache__"}
@@ -102,8 +103,7 @@ def check_spec_references(root):
 
 
 def check_algorithm_table(root):
-    with open(root / "share" / "algorithms.toml", "rb") as f:
-        table = tomllib.load(f)["algorithm"]
+    table = tables.load("algorithms.toml", root / "share")["algorithm"]
     by_name = {a["name"]: a for a in table}
     # The README's table: | name | `experiment` | `representation` | `mutator` | summary |
     rows = {}

@@ -41,7 +41,7 @@ done
 
 # What the tutorial says the commands make.
 fail() { echo "FAIL: $*"; exit 1; }
-grep -q "^sweep: estimated [0-9.]* core-hours" "$work/blocks/03.sh.log" || fail "no estimate: $(cat "$work/blocks/03.sh.log")"
+grep -q "^sweep: estimated [0-9.]* core-hours" "$work/blocks/02.sh.log" || fail "no estimate: $(cat "$work/blocks/02.sh.log")"
 for run in striker-iso/seed-1 striker-iso/seed-2 striker-iso-line-dd/seed-1 striker-iso-line-dd/seed-2 \
            striker-half-step/seed-1 striker-half-step/seed-2; do
   grep -qx complete "runs/$run/status" || fail "runs/$run is not complete"
@@ -50,7 +50,7 @@ done
 for f in coverage-striker map-striker-mape-iso map-striker-mape-isolinedd traces-striker-mape-iso; do
   [ -s "figures/$f.png" ] || fail "figures/$f.png was not drawn: $(ls figures)"
 done
-grep -q "100% tests passed" "$work/blocks/05.sh.log" || fail "the plugin's test: $(cat "$work/blocks/05.sh.log")"
+grep -q "100% tests passed" "$work/blocks/04.sh.log" || fail "the plugin's test: $(cat "$work/blocks/04.sh.log")"
 grep -q 'param_float("step", "0.25"' my-mutator/half_step.hpp
 grep -q '^type = .half-step.$' runs/striker-half-step/seed-1/config.toml
 grep -q '^step = 0.25$' runs/striker-half-step/seed-1/config.toml || fail "the run did not take the new default"

@@ -57,8 +57,7 @@ manifest = json.loads((fig / "qdplot.json").read_text())
 check({f["file"] for f in manifest["files"]} >= {f"{s}.{x}" for s in EXPECTED for x in ("png", "svg")}, "manifest")
 
 
-def rows(path):
-    return runs.read_csv(path)
+rows = runs.read_csv
 
 
 def run_dirs(name):

@@ -119,7 +119,7 @@ PATH=/usr/bin:/bin /usr/bin/python3 "$src/share/qdresults" "$out" "$s" > "$s.log
 [ ! -e "$s/runs/striker-poms/seed-1/losses.csv" ] && [ ! -e "$s/runs/striker-poms/seed-1/checkpoint.bin" ] \
   && [ ! -e "$s/runs/striker-poms/seed-1/metrics.csv" ] && [ -s "$s/runs/striker-poms/seed-1/metrics.csv.gz" ] \
   || { ls "$s/runs/striker-poms/seed-1"; exit 1; }
-zcat "$s/runs/striker-poms/seed-1/archive.csv.gz" | head -n 1 | grep -q "^index,objective,measures_0,measures_1,measures_2,recn_error$"
+zcat "$s/runs/striker-poms/seed-1/archive.csv.gz" | sed -n 1p | grep -q "^index,objective,measures_0,measures_1,measures_2,recn_error$"
 [ "$(zcat "$s/runs/striker-poms/seed-1/archive.csv.gz" | wc -l)" -eq "$(wc -l < "$out/runs/striker-poms/seed-1/archive.csv")" ]
 diff <(grep "^| " "$report") <(grep "^| " "$s/REPORT.md") || { echo "the study's tables differ from the report's"; exit 1; }
 grep -q "^- regenerated from this directory's files (study.toml, runs/): \`share/qdreport --regenerate REPORT_DIR\`$" "$s/REPORT.md"

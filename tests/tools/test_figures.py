@@ -59,6 +59,20 @@ class Figures(unittest.TestCase):
         self.assertIn("no fitness map", said)
         self.assertIn("every elite has the same fitness", said)
 
+    def test_loss_curves_label_several_ticks_whatever_their_range(self):
+        for low, high in ((100.0, 120.0), (80.0, 600.0), (1e-3, 50.0)):
+            root = fixtures.tmpdir(self)
+            run = fixtures.write_run(root / "runs", rep="autoencoder", mutator="my-op")
+            steps = [low + (high - low) * k / 9 for k in range(10)]
+            (run / "losses.csv").write_text("loop,epoch,train_loss,test_loss\n" + "".join(
+                f"{k // 5},{k % 5},{v},{v * 1.01 if k >= 5 else ''}\n" for k, v in enumerate(reversed(steps))))
+            with contextlib.redirect_stdout(io.StringIO()):
+                plot_cli.plot([root / "runs"], root / "figures", ["losses"], formats=("png",), dump=True)
+            fig = dump(root / "figures", "losses-point-mass-my-env-decaying")["figure"]
+            self.assertGreaterEqual(fig["axes"][0]["yticks"], 3, (low, high, fig))
+            self.assertEqual(fig["legends"], ["train loss (solid)", "test loss (dashed)"])
+            self.assertEqual(fig["colorbars"], ["loop"])
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -50,8 +50,12 @@ def log_ticks(axis, lo, hi):
     and 5 times each over a few; every integer multiple within about a decade, so a narrow range
     still shows several labelled values."""
     decades = math.log10(hi / lo) if lo > 0 and hi > lo else 0.0
+    axis.set_minor_locator(ticker.LogLocator(base=10, subs=tuple(float(k) for k in range(1, 10))))
+    axis.set_minor_formatter(ticker.NullFormatter())
+    if decades < 0.5:  # less than a factor of 3: evenly spaced round values
+        axis.set_major_locator(ticker.MaxNLocator(nbins=5))
+        axis.set_major_formatter(ticker.ScalarFormatter())
+        return
     subs = (1.0,) if decades > 4 else (1.0, 2.0, 5.0) if decades > 1.5 else tuple(float(k) for k in range(1, 10))
     axis.set_major_locator(ticker.LogLocator(base=10, subs=subs))
     axis.set_major_formatter(ticker.LogFormatterSciNotation(labelOnlyBase=False, minor_thresholds=(100, 100)))
-    axis.set_minor_locator(ticker.LogLocator(base=10, subs=tuple(float(k) for k in range(1, 10))))
-    axis.set_minor_formatter(ticker.NullFormatter())
