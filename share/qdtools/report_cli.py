@@ -146,7 +146,8 @@ def draw(out, kinds=None, qdrun=None, compact=False):
                       qdrun=qdrun, compact=compact)
 
 
-def write(out, selection, header, addenda):
+def render(out, selection, header, addenda):
+    """REPORT.md's text for the report directory `out`: its runs, figures/qdplot.json and these."""
     runs_root = out / "runs"
     envs, algs = selection["environments"], selection["algorithms"]
     # Every run of the chosen environments and algorithms: the epoch caps are read from the runs themselves.
@@ -155,19 +156,27 @@ def write(out, selection, header, addenda):
                       if runs_mod.is_run_dir(d)] for e in envs for a in algs}
     report = sections.Report(out=out, envs=envs, algs=algs, runs=found, figures=read_manifest(out / "figures"),
                              header=header, selection=selection, addenda=addenda)
+    return sections.render(report)
+
+
+def write(out, selection, header, addenda):
     tmp = out / "REPORT.md.tmp"
-    tmp.write_text(sections.render(report))
+    tmp.write_text(render(out, selection, header, addenda))
     tmp.replace(out / "REPORT.md")
     print(f"qdreport: wrote {out / 'REPORT.md'}")
 
 
-def regenerate(out):
+def regenerated(out):
+    """The header and addenda of a report made again from its study.toml (--regenerate)."""
     record = study.read(out)
     if record is None:
         raise ToolError(f"{out}: no {study.NAME} (qdreport writes one with every report; see share/README.md)")
-    shown = Shown(out)
-    header = dict(record["header"])
-    header["regenerated"] = shown([sys.argv[0], "--regenerate", out])
+    header = dict(record["header"], regenerated=Shown(out)([tables.SHARE / "qdreport", "--regenerate", out]))
+    return record["selection"], header, record.get("addendum", [])
+
+
+def regenerate(out):
+    selection, header, addenda = regenerated(out)
     draw(out, kinds=FILE_KINDS, compact=True)
-    write(out, record["selection"], header, record.get("addendum", []))
+    write(out, selection, header, addenda)
     return 0

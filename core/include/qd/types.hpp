@@ -83,8 +83,9 @@ struct GridSpec {
   std::vector<double> lower, upper;  // range of the continuous values per dimension
   std::int64_t cells = 0;            // total number of cells
   // Optional names of the bins, for plots (the Striker's wall pairs): empty, or one list per
-  // dimension, each empty (bins are numbered) or with one name per bin.
-  std::vector<std::vector<std::string>> labels;
+  // dimension, each empty (bins are numbered) or with one name per bin. Its initializer keeps a
+  // grid built as {shape, names, lower, upper, cells} free of missing-initializer warnings.
+  std::vector<std::vector<std::string>> labels = {};
 };
 
 }  // namespace qd
