@@ -73,7 +73,7 @@ for alg in ("poms", "iso"):
         end = {int(r["loop"]): r for r in rows}
         work = lambda r: r["wall_seconds"] - r["train_seconds"]
         e0, e1 = int(end[0]["evaluations"]), int(end[1]["evaluations"])
-        ratios.append((work(end["1"]) - work(end["0"])) / (e1 - e0) / (work(end["0"]) / e0))
+        ratios.append((work(end[1]) - work(end[0])) / (e1 - e0) / (work(end[0]) / e0))
         middle = (e0 + e1) // 2
 print(f"{middle} {sum(ratios) / len(ratios):.2f}")
 PY

@@ -6,7 +6,7 @@
 #include <qd/errors.hpp>
 
 #include <gtest/gtest.h>
-#include <toml++/toml.hpp>
+#include <toml++/toml.h>
 
 #include <string>
 

@@ -32,7 +32,7 @@ def plot(out, run, qdrun):
               "main table (Trace::main), which these figures draw")
         return
     style = tables.environments().trace_style(run.env_type)
-    body = style.get("body", "trace")
+    body = style.get("body", "")
     names = style.get("columns", main[:2])
     origin = style.get("origin", [0.0, 0.0])
     paths = {}
@@ -53,7 +53,8 @@ def plot(out, run, qdrun):
     ax.add_collection(lc)
     ax.autoscale()
     handles = [Line2D([], [], color=matplotlib.colormaps["viridis"](0.5), linewidth=1)]
-    labels = [f"one {body} path per elite ({len(paths)}), coloured by its final {names[0]}"]
+    what = f"{body} path" if body else "path"
+    labels = [f"one {what} per elite ({len(paths)}), coloured by its final {names[0]}"]
     if "outline" in style:
         xs, ys = zip(*style["outline"])
         (edge,) = ax.plot(xs, ys, color="black", linewidth=1)
@@ -63,8 +64,10 @@ def plot(out, run, qdrun):
         ax.set_aspect("equal")
 
     def axis_label(name, k):
+        if not style:  # an environment environments.toml does not know: its trace's own column
+            return f"{main[k]} (column {k + 1} of the trace's main table)"
         shift = origin[k] if k < len(origin) else 0.0
-        return f"{body} {name}" + (f" - {shift:g}" if shift else "") + ("" if style else f" (trace column {main[k]})")
+        return f"{body} {name}" + (f" - {shift:g}" if shift else "")
 
     if len(main) >= 2:
         ax.set_xlabel(axis_label(names[0], 0))
@@ -74,9 +77,10 @@ def plot(out, run, qdrun):
         ax.set_ylabel(axis_label(names[0], 0))
     ax.grid(alpha=0.3)
     matches = sum(1 for rs in paths.values() if rs[0]["landed"] == rs[0]["cell"])
-    ax.set_title(run_title(run, f"{body} paths of {len(paths)} elites"), fontsize=10)
+    ax.set_title(run_title(run, f"{what}s of {len(paths)} elites" + ("" if style else " (the trace's main columns)")),
+                 fontsize=10)
     bar = fig.colorbar(lc, ax=ax, shrink=0.8)
-    bar.set_label(f"final {body} {names[0]}")
+    bar.set_label(f"final {body} {names[0]}".replace("  ", " "))
     legend_below(fig, handles, labels, ncol=1, fontsize=8)
     fig.subplots_adjust(left=0.12, right=0.95, top=0.91, bottom=0.16)
     out.save(fig, f"traces-{slug(run.env)}-{slug(run.algorithm)}", "traces",
