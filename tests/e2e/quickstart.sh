@@ -12,7 +12,7 @@ start=$(date +%s)
 echo "qdrun: $(($(date +%s) - start)) s"
 run=$out/quickstart/seed-500
 grep -qx complete "$run/status"
-/usr/bin/python3 "$src/share/qdplot" "$run" --kinds coverage,maps --formats png --dump-data -o "$run/figures" > /dev/null
+/usr/bin/python3 "$src/share/qdplot" "$run" --kinds coverage,maps --color occupancy --formats png --dump-data -o "$run/figures" > /dev/null
 /usr/bin/python3 - "$(dirname "$0")" "$run/figures" <<'PY'
 import sys
 sys.path.insert(0, sys.argv[1])
