@@ -16,6 +16,6 @@ start=$(date +%s)
 ./build/bin/qdrun experiments/quickstart.toml --output runs "$@"
 echo "qdrun took $(($(date +%s) - start)) s"
 run=$(echo runs/quickstart/seed-*)  # seed-500, or the seed given with --seed
-/usr/bin/python3 share/qdplot "$run" --kinds coverage,maps --formats png -o "$run/figures" > /dev/null
+/usr/bin/python3 share/qdplot "$run" --kinds coverage,maps --color occupancy --formats png -o "$run/figures" > /dev/null
 echo "Run directory: $run (config.toml, metrics.csv, archive.csv, grid.toml, ...)"
 for png in "$run"/figures/*.png; do echo "Figure:        $png"; done  # coverage-striker.png, map-striker-poms.png

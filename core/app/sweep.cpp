@@ -551,7 +551,7 @@ int run_sweep(const SweepOptions& o,
 
   // Each run's OpenMP threads (the autoencoder's training) stay within its share of the cores:
   // concurrent runs that each train on every core spin-wait on each other's threads, which made
-  // two concurrent Walker fits 3 times slower (docs/performance.md). Results do not depend on it.
+  // two concurrent Walker fits 3 times slower (docs/performance-history.md). Results do not depend on it.
   if (std::getenv("OMP_THREAD_LIMIT") == nullptr) ::setenv("OMP_THREAD_LIMIT", std::to_string(workers).c_str(), 1);
   std::map<pid_t, std::pair<std::size_t, double>> running;  // pid -> (run, start time)
   std::size_t next = 0;

@@ -34,6 +34,20 @@ int wall_class(const int* events, std::size_t count) {
   return 1 + kWalls + first * (kWalls - 1) + rank;
 }
 
+std::vector<std::string> wall_class_labels() {
+  static const char* const kWallNames[kWalls] = {"S", "E", "N", "W"};
+  std::vector<std::string> labels(kWallClasses);
+  labels[0] = "none";
+  for (int w = 0; w < kWalls; ++w) labels[1 + w] = kWallNames[w];
+  for (int first = 0; first < kWalls; ++first)
+    for (int second = 0; second < kWalls; ++second)
+      if (second != first) {
+        const int events[2] = {first, second};
+        labels[wall_class(events, 2)] = std::string(kWallNames[first]) + "-" + kWallNames[second];
+      }
+  return labels;
+}
+
 int bin_x(double x_n) {
   return bin(x_n, kMinX, kMaxX);
 }
@@ -50,6 +64,7 @@ GridSpec ContactGridDescriptor::grid() const {
   spec.lower = {0.0, kMinY, kMinX};
   spec.upper = {static_cast<double>(kWallClasses), kMaxY, kMaxX};
   spec.cells = kCells;
+  spec.labels = {wall_class_labels(), {}, {}};
   return spec;
 }
 

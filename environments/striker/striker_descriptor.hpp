@@ -10,6 +10,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
+#include <vector>
 
 namespace qd::striker {
 
@@ -30,6 +32,10 @@ inline constexpr double kMaxY = 1.5 - kRangeOffset;
 // first two distinct walls in order of first touch. Later walls are ignored. Returns -1 if an
 // event is not a wall index.
 int wall_class(const int* events, std::size_t count);
+
+// The name of each wall class, for grid.toml's labels: "none", "S", "E", "N", "W", then "S-E" (the
+// puck touched S first, then E), "S-N", ... in the order of the class index.
+std::vector<std::string> wall_class_labels();
 
 // int(clip((v - lo) / (hi - lo) * 30, 0, 29)) with the reference's ranges; -1 for non-finite v.
 int bin_x(double x_n);

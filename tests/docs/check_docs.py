@@ -12,18 +12,20 @@
     source file or script, qdplot or qdreport, or in qdrun's --list and --describe output.
   * The algorithm table, share/algorithms.toml, is the only one: the README's table lists its
     entries with the same representation and mutator, every experiments/<variant>/<name>.toml of the
-    paper's variants holds the (representation, mutator, initial) of its entry, and qdplot and
-    qdreport hold no algorithm names of their own.
+    paper's variants holds the (representation, mutator, initial) of its entry, and the tools
+    (share/qdplot, qdreport, qdresults and the qdtools package) hold no algorithm names of their own.
+  * The tutorial (docs/tutorial.md) is at most 150 lines; tests/docs/tutorial.sh runs its commands.
 """
 import re
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 
 sys.dont_write_bytecode = True  # nothing written into the source tree
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "experiments"))
 from paper_table import load as load_experiment  # noqa: E402  (an experiment file with its includes, as qdrun merges them)
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent.parent / "share"))
+from qdtools import tables  # noqa: E402  (the tools' reader of share/'s tables)
 
 SPEC = re.compile(r"\bspec(?:\s+sections?)?\s*(?:§\s*)?\d+(?:\.\d+)*|\(spec\)|poms-reference\.md", re.IGNORECASE)
 SKIP_DIRS = {".git", "__pycache__"}
@@ -53,10 +55,14 @@ def check_readme(root):
                          ("scripts/test.sh", "the test command")):
         if needle not in text:
             fail(f"README.md does not mention {what} ({needle})")
-    for name in ("LICENSE", "CITATION.cff", "docs/README.md", "docs/user-guide.md", "docs/plugin-guide.md",
-                 "docs/performance.md", "docs/design.md", "docs/reference-behaviour.md"):
+    for name in ("LICENSE", "CITATION.cff", "CHANGELOG.md", "docs/README.md", "docs/tutorial.md", "docs/user-guide.md",
+                 "docs/plugin-guide.md", "docs/performance.md", "docs/performance-history.md", "docs/design.md",
+                 "docs/reference-behaviour.md", "results/README.md", "examples/README.md"):
         if not (root / name).is_file():
             fail(f"{name} is missing")
+    tutorial = root / "docs" / "tutorial.md"
+    if tutorial.is_file() and tutorial.read_text().count("\n") > 150:
+        fail(f"docs/tutorial.md has {tutorial.read_text().count(chr(10))} lines (at most 150: a newcomer finishes it)")
 
 
 LINK = re.compile(r"\]\(([^)\s]+)\)")
@@ -83,7 +89,7 @@ def check_links_and_blocks(root):
 
 def check_spec_references(root):
     targets = list(files(root, "*.md")) + list(files(root / "experiments", "*.toml"))
-    targets += [root / "share" / "qdplot", root / "share" / "qdreport"]
+    targets += [root / "share" / name for name in ("qdplot", "qdreport", "qdresults")]
     # Code comments too: a reader of the sources cannot follow a reference to a document they lack.
     for pattern in ("*.cpp", "*.hpp", "*.py", "*.sh", "CMakeLists.txt"):
         targets += [p for p in files(root, pattern) if p.resolve() != Path(__file__).resolve()]
@@ -97,8 +103,7 @@ def check_spec_references(root):
 
 
 def check_algorithm_table(root):
-    with open(root / "share" / "algorithms.toml", "rb") as f:
-        table = tomllib.load(f)["algorithm"]
+    table = tables.load("algorithms.toml", root / "share")["algorithm"]
     by_name = {a["name"]: a for a in table}
     # The README's table: | name | `experiment` | `representation` | `mutator` | summary |
     rows = {}
@@ -131,11 +136,13 @@ def check_algorithm_table(root):
             if got != want:
                 fail(f"{d.relative_to(root)}/{stem}.toml: (representation, mutator, initial) {got}, "
                      f"share/algorithms.toml {want}")
-    for script in ("qdplot", "qdreport"):
-        text = (root / "share" / script).read_text()
+    tools = [root / "share" / name for name in ("qdplot", "qdreport", "qdresults")]
+    for script in tools + sorted((root / "share" / "qdtools").rglob("*.py")):
+        text = script.read_text()
         for name in by_name:
             if re.search(r"[\"']" + re.escape(name) + r"[\"']", text):
-                fail(f"share/{script} spells the algorithm name '{name}' itself (read it from algorithms.toml)")
+                fail(f"{script.relative_to(root)} spells the algorithm name '{name}' itself (read it from "
+                     "algorithms.toml)")
 
 
 def check_cli(qdrun):

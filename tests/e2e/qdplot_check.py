@@ -1,15 +1,16 @@
 #!/usr/bin/python3
-"""Checks qdplot's output against the run directories, computing every number again here (plain
-Python, no numpy): files of every kind exist, PNGs decode to the documented pixel size, SVGs parse
-as XML with the documented size, and the plotted series equal the CSV files."""
-import csv
+"""Checks qdplot's output against the run directories, computing every number again here from the
+files (read with the tools' reader): files of every kind exist, PNGs decode to the documented pixel
+size, SVGs parse as XML with the documented size, every figure labels its axes and explains its
+colours, and the plotted series equal the CSV files."""
 import json
 import math
-import struct
 import sys
-import xml.etree.ElementTree as ET
-import zlib
 from pathlib import Path
+
+from figure_check import explained, png_size, runs, svg_size
+
+from qdtools.stats import nearest
 
 runs_root, fig = Path(sys.argv[1]), Path(sys.argv[2])
 failures = []
@@ -37,26 +38,6 @@ EXPECTED = {
 }
 
 
-def png_size(path):
-    data = path.read_bytes()
-    if data[:8] != b"\x89PNG\r\n\x1a\n":
-        raise ValueError("not a PNG")
-    pos, idat, width = 8, b"", None
-    while pos < len(data):
-        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
-        body = data[pos + 8:pos + 8 + length]
-        if kind == b"IHDR":
-            width, height, depth, colour = struct.unpack(">IIBB", body[:10])
-        elif kind == b"IDAT":
-            idat += body
-        pos += 12 + length
-    channels = {0: 1, 2: 3, 4: 2, 6: 4}[colour]
-    raw = zlib.decompress(idat)  # the image data decodes: one filter byte + one row per line
-    if len(raw) != height * (1 + width * channels * depth // 8):
-        raise ValueError("image data of the wrong length")
-    return width, height
-
-
 for stem, size_kind in EXPECTED.items():
     w, h = SIZES[size_kind]
     try:
@@ -64,19 +45,19 @@ for stem, size_kind in EXPECTED.items():
     except Exception as e:  # noqa: BLE001 -- any failure to read is a test failure
         failures.append(f"{stem}.png: {e}")
     try:
-        root = ET.parse(fig / f"{stem}.svg").getroot()
-        check(root.tag.endswith("svg"), f"{stem}.svg root is {root.tag}")
-        check(math.isclose(float(root.get("width").rstrip("pt")), w * 72) and
-              math.isclose(float(root.get("height").rstrip("pt")), h * 72), f"{stem}.svg size")
+        sw, sh = svg_size(fig / f"{stem}.svg")
+        check(math.isclose(sw, w * 72) and math.isclose(sh, h * 72), f"{stem}.svg size")
     except Exception as e:  # noqa: BLE001
         failures.append(f"{stem}.svg: {e}")
+# Every figure explains itself: labelled axes and ticks, a legend or a colour bar.
+for path in sorted(fig.glob("*.json")):
+    if path.name != "qdplot.json":
+        failures += explained(json.loads(path.read_text()), path.stem)
 manifest = json.loads((fig / "qdplot.json").read_text())
 check({f["file"] for f in manifest["files"]} >= {f"{s}.{x}" for s in EXPECTED for x in ("png", "svg")}, "manifest")
 
 
-def rows(path):
-    with open(path) as f:
-        return list(csv.DictReader(f))
+rows = runs.read_csv
 
 
 def run_dirs(name):
@@ -84,14 +65,7 @@ def run_dirs(name):
 
 
 def cells_of(run):
-    for line in (run / "provenance.toml").read_text().splitlines():
-        if line.startswith("cells = "):
-            return int(line.split("=")[1])
-
-
-def nearest(values, q):
-    s = sorted(values)
-    return s[int(round(q / 100 * (len(s) - 1)))]  # numpy's 'nearest' (round half to even)
+    return runs.read_toml(run / "provenance.toml")["cells"]
 
 
 # Coverage: the median and quartiles over seeds at every evaluation count, in percent of all cells.
@@ -127,6 +101,11 @@ for stem, name in (("map-striker-poms", "striker-poms"), ("map-bipedal-kicker-ps
     if "per_panel" in data:
         check(data["per_panel"] == [sum(1 for c in cells if c // 900 == g) for g in range(17)], f"{stem} panels")
 
+# The Striker names its wall classes in grid.toml: the panels are titled with them.
+titles = [a["title"] for a in json.loads((fig / "map-striker-poms.json").read_text())["figure"]["axes"]]
+check(titles[0].startswith("walls none (") and titles[5].startswith("walls S-E (") and titles[16].startswith(
+    "walls W-N ("), f"striker panel titles {titles[:6]}")
+
 # Trajectories: one path per elite, and every replay lands in its stored cell.
 for stem, name in (("traces-striker-poms", "striker-poms"), ("traces-bipedal-kicker-ps-uniform",
                    "bipedal-kicker-ps-uniform"), ("traces-bipedal-walker-mape-iso", "bipedal-walker-iso")):
@@ -152,7 +131,7 @@ for stem, name in (("losses-striker-poms", "striker-poms"),):
     data = json.loads((fig / f"{stem}.json").read_text())
     ls = rows(run_dirs(name)[0] / "losses.csv")
     for loop, entry in data["loops"].items():
-        mine = [float(r["train_loss"]) for r in ls if r["loop"] == loop]
+        mine = [r["train_loss"] for r in ls if int(r["loop"]) == int(loop)]
         check(entry["train_loss"] == mine, f"{stem} loop {loop} train losses")
 
 # Epoch caps: every figure of a capped autoencoder run says so (the fixture caps smoke at 30, the

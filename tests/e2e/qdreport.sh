@@ -33,12 +33,14 @@ grep -q "^\*\*Autoencoder epochs capped at 5 per loop\*\*" "$report"  # the capt
 grep -q "^| PoMS | 3/3 | .* | \*\*capped at 5\*\* |$" "$report"
 grep -q "^| MAPE-Iso | 3/3 | .* | - | - |$" "$report"  # no mixing ratio, no autoencoder
 # The mixing ratio column: the median over seeds of each run's mean over its last loop.
-mixing=$(/usr/bin/python3 - "$out/runs/striker-poms" <<'PY'
-import csv, sys
+mixing=$(/usr/bin/python3 - "$(dirname "$0")" "$out/runs/striker-poms" <<'PY'
+import sys
+sys.path.insert(0, sys.argv[1])
+from figure_check import runs
 means = []
 for s in (1, 2, 3):
-    rows = list(csv.DictReader(open(f"{sys.argv[1]}/seed-{s}/metrics.csv")))
-    last = [float(r["mixing_ratio"]) for r in rows if r["loop"] == rows[-1]["loop"]]
+    rows = runs.read_csv(f"{sys.argv[2]}/seed-{s}/metrics.csv")
+    last = [r["mixing_ratio"] for r in rows if r["loop"] == rows[-1]["loop"]]
     means.append(sum(last) / len(last))
 print(f"{sorted(means)[1]:.2f}")
 PY
@@ -60,16 +62,18 @@ grep -q "^All 9 compared runs: estimate" "$report"
 grep -q "^The sweep ran in 1 invocation of qdreport, [0-9.]* h of wall time in all (ratio to the estimate" "$report"
 # Episode lengthening: the breeding runs' (PoMS and MAPE-Iso, not ps-uniform) loop-1 time per
 # evaluation over their loop 0's, averaged, and the [cost] lines that state it, which qdrun accepts.
-expected=$(/usr/bin/python3 - "$out/runs" <<'PY'
-import csv, sys
+expected=$(/usr/bin/python3 - "$(dirname "$0")" "$out/runs" <<'PY'
+import sys
+sys.path.insert(0, sys.argv[1])
+from figure_check import runs
 ratios, middle = [], None
 for alg in ("poms", "iso"):
     for s in (1, 2, 3):
-        rows = list(csv.DictReader(open(f"{sys.argv[1]}/striker-{alg}/seed-{s}/metrics.csv")))
-        end = {r["loop"]: r for r in rows}
-        work = lambda r: float(r["wall_seconds"]) - float(r["train_seconds"] or 0)
-        e0, e1 = int(end["0"]["evaluations"]), int(end["1"]["evaluations"])
-        ratios.append((work(end["1"]) - work(end["0"])) / (e1 - e0) / (work(end["0"]) / e0))
+        rows = runs.read_csv(f"{sys.argv[2]}/striker-{alg}/seed-{s}/metrics.csv")
+        end = {int(r["loop"]): r for r in rows}
+        work = lambda r: r["wall_seconds"] - r["train_seconds"]
+        e0, e1 = int(end[0]["evaluations"]), int(end[1]["evaluations"])
+        ratios.append((work(end[1]) - work(end[0])) / (e1 - e0) / (work(end[0]) / e0))
         middle = (e0 + e1) // 2
 print(f"{middle} {sum(ratios) / len(ratios):.2f}")
 PY
@@ -100,6 +104,39 @@ for s in 1 2 3; do echo running > "$out/runs/striker-ps-uniform/seed-$s/status";
 grep -q "^| ps-uniform | 0/3 | [0-9]* so far | none complete | | | | | | - |$" "$report" \
   || { grep "^| ps-uniform |" "$report"; exit 1; }
 ! grep -qi "nan" "$report" || { grep -i "nan" "$report"; exit 1; }
+for s in 1 2 3; do echo complete > "$out/runs/striker-ps-uniform/seed-$s/status"; done
+
+# The report as a study of results/ (share/qdresults): each run without its parameters, checkpoints
+# and per-epoch losses, and REPORT.md made again from those files alone, without qdrun (no --qdrun,
+# nothing on PATH), with the same tables, a hand-written addendum in its place, and the figures the
+# files cannot give again (trajectories, latent codes, losses) as they were drawn.
+/usr/bin/python3 "$src/share/qdreport" --no-run --environments striker --algorithms poms,iso,ps-uniform \
+  --seeds 1,2,3 --loops 2 --max-epochs 5 -o "$out" --qdrun "$qdrun" > "$out.log" 2>&1 || { cat "$out.log"; exit 1; }
+printf '\n[[addendum]]\nafter = "## striker"\ntext = "Written by hand."\n' >> "$out/study.toml"
+s=$out-study
+rm -rf "$s"
+PATH=/usr/bin:/bin /usr/bin/python3 "$src/share/qdresults" "$out" "$s" > "$s.log" 2>&1 || { cat "$s.log"; exit 1; }
+[ ! -e "$s/runs/striker-poms/seed-1/losses.csv" ] && [ ! -e "$s/runs/striker-poms/seed-1/checkpoint.bin" ] \
+  && [ ! -e "$s/runs/striker-poms/seed-1/metrics.csv" ] && [ -s "$s/runs/striker-poms/seed-1/metrics.csv.gz" ] \
+  || { ls "$s/runs/striker-poms/seed-1"; exit 1; }
+zcat "$s/runs/striker-poms/seed-1/archive.csv.gz" | sed -n 1p | grep -q "^index,objective,measures_0,measures_1,measures_2,recn_error$"
+[ "$(zcat "$s/runs/striker-poms/seed-1/archive.csv.gz" | wc -l)" -eq "$(wc -l < "$out/runs/striker-poms/seed-1/archive.csv")" ]
+diff <(grep "^| " "$report") <(grep "^| " "$s/REPORT.md") || { echo "the study's tables differ from the report's"; exit 1; }
+grep -q "^- regenerated from this directory's files (study.toml, runs/): \`share/qdreport --regenerate REPORT_DIR\`$" "$s/REPORT.md"
+grep -B2 "^Written by hand.$" "$s/REPORT.md" | grep -q "^</details>$" || { echo "the addendum is not under striker"; exit 1; }
+for f in coverage-striker.png map-striker-poms.png traces-striker-poms.png losses-striker-poms.png latents-striker-poms.png; do
+  [ -s "$s/figures/$f" ] && grep -q "(figures/$f)" "$s/REPORT.md" || { echo "$f missing from the study"; exit 1; }
+done
+! find "$s" -name "*.svg" | grep -q . || { echo "a study keeps PNGs only"; exit 1; }
+/usr/bin/python3 - "$src/share" "$s" <<'PY'
+import sys
+sys.path.insert(0, sys.argv[1])
+from pathlib import Path
+from qdtools import results
+root = Path(sys.argv[2])
+failures, _, _ = results.check(root, [p for p in root.rglob("*") if p.is_file()])
+assert not failures, failures
+PY
 
 # An invocation that is stopped (SIGTERM, as when a session ends) logs its time and stops its runs;
 # the same command then resumes them.

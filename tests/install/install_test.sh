@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# Installs qd into a fresh prefix, builds an out-of-tree plugin against it with find_package(qd)
-# and qd_add_plugin(), runs the plugin's own test (the installed conformance checks), checks how
-# both were compiled, and runs the plugin through the installed qdrun: a run, its --resume without
-# QD_PLUGIN_PATH, a component swap with --set and include, and the plugin built with
-# -D_GLIBCXX_DEBUG refused.
+# Installs qd into a fresh prefix, builds the README's out-of-tree plugin (examples/half-step, from
+# the copy the install carries) against it with find_package(qd) and qd_add_plugin(), runs the
+# plugin's own test (the installed conformance checks), checks how both were compiled, and runs the
+# plugin through the installed qdrun: a run, its --resume without QD_PLUGIN_PATH, a component swap
+# with --set and include, and the plugin built with -D_GLIBCXX_DEBUG refused.
 set -euo pipefail
 build=$1 src=$2 work=$3
 # A sanitizer build's libqd_core needs the sanitizer runtime in every program that links it.
@@ -15,8 +15,10 @@ fi
 rm -rf "$work"
 cmake --install "$build" --prefix "$work/prefix" > "$work.install.log" 2>&1 || { cat "$work.install.log"; exit 1; }
 fail() { echo "FAIL: $*"; exit 1; }
+example=$work/prefix/share/qd/examples/half-step
+cmp "$example/half_step_test.cpp" "$src/examples/half-step/half_step_test.cpp" || fail "the install carries no example test"
 # No build type: the example's CMakeLists.txt is the README's four lines, which set none.
-cmake -S "$src/example" -B "$work/example-build" -G Ninja -DCMAKE_PREFIX_PATH="$work/prefix" \
+cmake -S "$example" -B "$work/example-build" -G Ninja -DCMAKE_PREFIX_PATH="$work/prefix" \
       -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF -DCMAKE_EXPORT_COMPILE_COMMANDS=ON "${consumer_flags[@]}" \
       > "$work.configure.log" 2>&1 || { cat "$work.configure.log"; exit 1; }
 cmake --build "$work/example-build" > "$work.build.log" 2>&1 || { cat "$work.build.log"; exit 1; }
@@ -40,7 +42,7 @@ for file in half_step.cpp half_step_test.cpp; do  # the plugin, and its test (qd
   # Eigen's product blocking must not depend on the CPU's caches in third-party plugins either.
   grep -q -- " -DEIGEN_NO_CPUID " <<< "$cmd" || fail "$file was compiled without EIGEN_NO_CPUID: $cmd"
 done
-cmake -S "$src/example" -B "$work/example-debug" -G Ninja -DCMAKE_PREFIX_PATH="$work/prefix" \
+cmake -S "$example" -B "$work/example-debug" -G Ninja -DCMAKE_PREFIX_PATH="$work/prefix" \
       -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF -DCMAKE_EXPORT_COMPILE_COMMANDS=ON -DCMAKE_BUILD_TYPE=Debug "${consumer_flags[@]}" \
       > "$work.configure-debug.log" 2>&1 || { cat "$work.configure-debug.log"; exit 1; }
 cmd=$(compile_command "$work/example-debug" half_step.cpp)
@@ -49,7 +51,7 @@ grep -q -- ' -g ' <<< "$cmd" || fail "a Debug build of the plugin lost -g: $cmd"
 # The installed qdrun finds the installed plugins next to itself and the new one on QD_PLUGIN_PATH,
 # and nothing of the build tree it was built in (the prefix lies inside that build tree).
 qdrun=$work/prefix/bin/qdrun
-smoke=$(cd "$src/../../experiments/smoke" && pwd)
+smoke=$(cd "$src/experiments/smoke" && pwd)
 sed 's/^type = "iso"/type = "half-step"/; /^sigma/d' "$smoke/iso.toml" > "$work/exp.toml"
 listing=$(QD_PLUGIN_PATH="$work/example-build" "$qdrun" --list 2> "$work/list.err")
 grep -q "half-step" <<< "$listing"
@@ -70,11 +72,12 @@ plugin_dir=$(cd "$work/example-build" && pwd -P)
 QD_PLUGIN_PATH="$work/example-build" "$qdrun" "$work/exp.toml" -o "$work/runs-resume" -q --stop-after-loop 1
 dir=$work/runs-resume/smoke-iso/seed-7
 grep -q "^stopped after loop 1" "$dir/status" || fail "status: $(cat "$dir/status")"
-python3 - "$dir/config.toml" "$plugin_dir" <<'PY_CHECK' || fail "config.toml does not record the plugin directory"
-import sys, tomllib
-with open(sys.argv[1], "rb") as f:
-    plugins = tomllib.load(f)["plugins"]
-assert plugins == {"search_path": [sys.argv[2]]}, plugins
+/usr/bin/python3 - "$work/prefix/share/qd" "$dir/config.toml" "$plugin_dir" <<'PY_CHECK' || fail "config.toml does not record the plugin directory"
+import sys
+sys.path.insert(0, sys.argv[1])  # the installed tools' reader
+from qdtools.runs import read_toml
+plugins = read_toml(sys.argv[2])["plugins"]
+assert plugins == {"search_path": [sys.argv[3]]}, plugins
 PY_CHECK
 env -u QD_PLUGIN_PATH "$qdrun" --resume "$dir" -q
 grep -qx complete "$dir/status"
@@ -99,17 +102,18 @@ QD_PLUGIN_PATH="$work/example-build" "$qdrun" "$work/swap.toml" -o "$work/runs-s
 for run in smoke-iso:0.5 swap-include:0.25; do
   name=${run%%:*} step=${run#*:}
   grep -qx complete "$work/runs-swap/$name/seed-7/status"
-  python3 - "$work/runs-swap/$name/seed-7/config.toml" "$step" <<'PY_CHECK' || fail "$name: [mutator] of config.toml"
-import sys, tomllib
-with open(sys.argv[1], "rb") as f:
-    mutator = tomllib.load(f)["mutator"]
-assert mutator == {"type": "half-step", "step": float(sys.argv[2])}, mutator
+  /usr/bin/python3 - "$work/prefix/share/qd" "$work/runs-swap/$name/seed-7/config.toml" "$step" <<'PY_CHECK' || fail "$name: [mutator] of config.toml"
+import sys
+sys.path.insert(0, sys.argv[1])
+from qdtools.runs import read_toml
+mutator = read_toml(sys.argv[2])["mutator"]
+assert mutator == {"type": "half-step", "step": float(sys.argv[3])}, mutator
 PY_CHECK
 done
 
 # (c) The plugin built with -D_GLIBCXX_DEBUG (other std:: container layouts) is refused, the message
 # naming both fingerprints.
-cmake -S "$src/example" -B "$work/example-debug-stl" -G Ninja -DCMAKE_PREFIX_PATH="$work/prefix" \
+cmake -S "$example" -B "$work/example-debug-stl" -G Ninja -DCMAKE_PREFIX_PATH="$work/prefix" \
       -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF -DBUILD_TESTING=OFF -DCMAKE_CXX_FLAGS=-D_GLIBCXX_DEBUG \
       > "$work.configure-debug-stl.log" 2>&1 || { cat "$work.configure-debug-stl.log"; exit 1; }
 cmake --build "$work/example-debug-stl" > "$work.build-debug-stl.log" 2>&1 || { cat "$work.build-debug-stl.log"; exit 1; }

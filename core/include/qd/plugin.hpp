@@ -43,7 +43,8 @@ namespace qd {
 // 5: Representation::estimate_fit_seconds (a new virtual member).
 // 6: environments with persistent worlds (EnvironmentInfo::persistent_worlds, RolloutBatch::world,
 //    Environment::save/load); CHANGELOG.md.
-inline constexpr std::uint32_t kPluginAbiVersion = 6;
+// 7: GridSpec::labels (names of a descriptor's bins, written to grid.toml).
+inline constexpr std::uint32_t kPluginAbiVersion = 7;
 
 enum class Kind : std::uint32_t { kEnvironment = 1, kDescriptor = 2, kRepresentation = 3, kMutator = 4 };
 QD_EXPORT const char* to_string(Kind kind) noexcept;

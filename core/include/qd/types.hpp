@@ -82,6 +82,10 @@ struct GridSpec {
   std::vector<std::string> names;    // one per dimension, for CSV headers and plots
   std::vector<double> lower, upper;  // range of the continuous values per dimension
   std::int64_t cells = 0;            // total number of cells
+  // Optional names of the bins, for plots (the Striker's wall pairs): empty, or one list per
+  // dimension, each empty (bins are numbered) or with one name per bin. Its initializer keeps a
+  // grid built as {shape, names, lower, upper, cells} free of missing-initializer warnings.
+  std::vector<std::vector<std::string>> labels = {};
 };
 
 }  // namespace qd

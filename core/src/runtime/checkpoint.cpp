@@ -25,7 +25,7 @@ namespace fs = std::filesystem;
 
 // With SSE4.2 (every x86-64-v2 CPU) the CPU's crc32 instruction: Boost's table-driven CRC runs at
 // about 0.4 GB/s, which cost 1-2 % of a Striker ps-uniform run (a checkpoint of megabytes every
-// 0.4 s); the instruction about 8.7 GB/s (docs/performance.md). Both give the same checksum.
+// 0.4 s); the instruction about 8.7 GB/s (docs/performance-history.md). Both give the same checksum.
 std::uint32_t crc32c(const char* bytes, std::size_t size) {
 #if defined(__SSE4_2__)
   std::uint64_t crc = 0xFFFFFFFFu;

@@ -24,6 +24,15 @@ std::string grid_toml(const GridSpec& g) {
     return t + "]";
   };
   out += "]\nlower = " + numbers(g.lower) + "\nupper = " + numbers(g.upper) + "\n";
+  if (!g.labels.empty()) {  // names of the bins, per dimension ([] where the bins are numbered)
+    out += "labels = [";
+    for (std::size_t d = 0; d < g.labels.size(); ++d) {
+      out += d ? ", [" : "[";
+      for (std::size_t k = 0; k < g.labels[d].size(); ++k) out += (k ? ", " : "") + toml_string(g.labels[d][k]);
+      out += "]";
+    }
+    out += "]\n";
+  }
   return out;
 }
 
@@ -40,7 +49,6 @@ std::string toml_string(const std::string& s) {
   return out + "\"";
 }
 
-namespace {
 void check_grid(const GridSpec& g, const std::string& who) {
   const std::size_t dims = g.shape.size();
   if (g.cells <= 0 || dims == 0) throw PluginError(who + " declares an empty grid");
@@ -55,7 +63,17 @@ void check_grid(const GridSpec& g, const std::string& who) {
   if (product != g.cells)
     throw PluginError(who + " declares " + std::to_string(g.cells) + " cells, but its shape has " +
                       std::to_string(product));
+  if (!g.labels.empty() && g.labels.size() != dims)
+    throw PluginError(who + " declares bin labels for " + std::to_string(g.labels.size()) + " dimensions of a " +
+                      std::to_string(dims) + "-dimensional grid");
+  for (std::size_t d = 0; d < g.labels.size(); ++d)
+    if (!g.labels[d].empty() && static_cast<std::int64_t>(g.labels[d].size()) != g.shape[d])
+      throw PluginError(who + " declares " + std::to_string(g.labels[d].size()) + " bin labels for dimension " +
+                        std::to_string(d) + " ('" + g.names[d] + "'), which has " + std::to_string(g.shape[d]) +
+                        " bins");
 }
+
+namespace {
 
 // Runs a factory; a ConfigError from it is reported at the key's place in the experiment file.
 template <class T>

@@ -39,8 +39,11 @@ struct Components {
 // environment's default descriptor into `ex` when the experiment names none.
 Components build_components(Experiment& ex, const Registry& registry);
 
-// grid.toml: the grid's cells, shape, names and bounds.
+// grid.toml: the grid's cells, shape, names and bounds, and its bins' labels if it names them.
 std::string grid_toml(const GridSpec& grid);
+// Throws PluginError naming `who` for a grid that breaks the descriptor contract: cells not the
+// product of the shape, names or bounds missing, bin labels of another count than the bins.
+void check_grid(const GridSpec& grid, const std::string& who);
 
 // `s` quoted as a TOML basic string.
 std::string toml_string(const std::string& s);

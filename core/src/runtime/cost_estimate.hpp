@@ -10,7 +10,7 @@
 //    of the loop-0 archive (uniform parents, theta + kPilotSigma N(0, I): the reference's MAPE-Iso
 //    operator, no model needed) and prices every episode from loop 1 on at their measured time.
 //    What it cannot see is a lengthening that builds up over many loops as the archive reaches
-//    cells only long episodes reach (the Walker's, docs/performance.md). An experiment file states
+//    cells only long episodes reach (the Walker's, docs/performance-history.md). An experiment file states
 //    it in [cost] (CostModel; qdreport measures it from finished runs): then, from loop 1 on, a
 //    mutation operator's episodes cost loop 0's time times cost.offspring_time at the loop's
 //    middle evaluation. A resumed run that has completed a loop past 0 is priced at its own

@@ -102,6 +102,19 @@ TEST(StrikerDescriptor, GridSpec) {
   EXPECT_DOUBLE_EQ(grid.upper[2], 0.965);
 }
 
+// The wall classes are named in grid.toml, in the order of the class index (the reference's figure
+// titles): first wall touched, then the second; S = 0, E = 1, N = 2, W = 3.
+TEST(StrikerDescriptor, WallClassLabels) {
+  const qd::GridSpec grid = ContactGridDescriptor().grid();
+  ASSERT_EQ(grid.labels.size(), 3u);
+  EXPECT_EQ(grid.labels[0], (std::vector<std::string>{"none", "S", "E", "N", "W", "S-E", "S-N", "S-W", "E-S", "E-N",
+                                                      "E-W", "N-S", "N-E", "N-W", "W-S", "W-E", "W-N"}));
+  EXPECT_TRUE(grid.labels[1].empty());
+  EXPECT_TRUE(grid.labels[2].empty());
+  const int north_then_west[] = {2, 2, 3, 0};
+  EXPECT_EQ(grid.labels[0][qd::striker::wall_class(north_then_west, 4)], "N-W");
+}
+
 // The grid describes the cell index: decomposed row-major over its shape (as grid.toml readers do),
 // a cell gives the wall class, the y bin and the x bin, in the order of the names.
 TEST(StrikerDescriptor, GridDecomposesTheCellIndex) {

@@ -460,7 +460,14 @@ inline Report check_descriptor(const Descriptor& d, const std::vector<Trace>& tr
   r.expect(g.cells == product, "grid().cells = " + std::to_string(g.cells) + " but the product of grid().shape is " +
                                    std::to_string(product) +
                                    " (cells are row-major over the shape; the core refuses such a grid)");
-  r.expect(again.shape == g.shape && again.names == g.names && again.cells == g.cells &&
+  r.expect(g.labels.empty() || g.labels.size() == dims,
+           "grid() has bin labels for " + std::to_string(g.labels.size()) + " of its " + std::to_string(dims) +
+               " dimensions (give one list per dimension, empty where the bins are numbered)");
+  for (std::size_t k = 0; k < g.labels.size() && k < dims; ++k)
+    r.expect(g.labels[k].empty() || static_cast<std::int64_t>(g.labels[k].size()) == g.shape[k],
+             "grid() has " + std::to_string(g.labels[k].size()) + " bin labels for dimension " + std::to_string(k) +
+                 " of " + std::to_string(g.shape[k]) + " bins");
+  r.expect(again.shape == g.shape && again.names == g.names && again.cells == g.cells && again.labels == g.labels &&
                detail::same_bits(again.lower, g.lower) && detail::same_bits(again.upper, g.upper),
            "grid() changed between two calls");
   if (!r.ok()) return r;

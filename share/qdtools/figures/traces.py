@@ -1,0 +1,89 @@
+"""traces-<env>-<alg>: every elite's trajectory, replayed by qdrun (--replay RUN --all --traces),
+for any environment: the first two columns of its trace's `main` table (main_0 right, main_1 up), or
+main_0 against the recorded row when it has one column, coloured by the path's last value of main_0.
+share/environments.toml names the columns of the environments it knows and draws the Striker's
+table; any other environment's columns are shown as main_0 and main_1."""
+from pathlib import Path
+
+import matplotlib
+import numpy as np
+from matplotlib.collections import LineCollection
+from matplotlib.lines import Line2D
+
+from .. import qdrun as qdrun_mod
+from .. import tables
+from ..runs import read_csv
+from .common import legend_below, run_title, slug
+
+
+def plot(out, run, qdrun):
+    archive = run.file("archive.csv")
+    if archive is None or archive.suffix == ".gz":
+        print(f"qdplot: no trajectories for {run.path}: it has no archive.csv with the elites' parameters to replay")
+        return
+    csv = out.dir / "data" / f"traces-{slug(run.env)}-{slug(run.algorithm)}-seed-{run.seed}.csv"
+    if qdrun_mod.make(qdrun, ["--replay", run.path, "--all", "--traces", csv], csv, [archive]):
+        print(f"qdplot: no trajectories for {run.path}: qdrun could not replay it (above)")
+        return
+    rows = read_csv(csv)
+    main = sorted((k for k in (rows[0] if rows else {}) if k.startswith("main_")), key=lambda k: int(k[5:]))
+    if not rows or not main:
+        print(f"qdplot: no trajectories for {run.path}: environment '{run.env_type}' records no rows in its trace's "
+              "main table (Trace::main), which these figures draw")
+        return
+    style = tables.environments().trace_style(run.env_type)
+    body = style.get("body", "")
+    names = style.get("columns", main[:2])
+    origin = style.get("origin", [0.0, 0.0])
+    paths = {}
+    for r in rows:
+        paths.setdefault(int(r["cell"]), []).append(r)
+    segments, finals = [], []
+    for rs in paths.values():
+        if len(main) >= 2:
+            xy = [(r[main[0]] - origin[0], r[main[1]] - origin[1]) for r in rs]
+        else:  # one column: its value against the recorded row
+            xy = [(r["row"], r[main[0]] - origin[0]) for r in rs]
+        segments.append(xy)
+        finals.append(xy[-1][0] if len(main) >= 2 else xy[-1][1])
+    fig = out.figure("traces")
+    ax = fig.subplots(1, 1)
+    lc = LineCollection(segments, cmap="viridis", linewidths=0.4, alpha=0.5)
+    lc.set_array(np.array(finals))
+    ax.add_collection(lc)
+    ax.autoscale()
+    handles = [Line2D([], [], color=matplotlib.colormaps["viridis"](0.5), linewidth=1)]
+    what = f"{body} path" if body else "path"
+    labels = [f"one {what} per elite ({len(paths)}), coloured by its final {names[0]}"]
+    if "outline" in style:
+        xs, ys = zip(*style["outline"])
+        (edge,) = ax.plot(xs, ys, color="black", linewidth=1)
+        handles.append(edge)
+        labels.append(style.get("outline_label", "outline"))
+    if style.get("equal_aspect"):
+        ax.set_aspect("equal")
+
+    def axis_label(name, k):
+        if not style:  # an environment environments.toml does not know: its trace's own column
+            return f"{main[k]} (column {k + 1} of the trace's main table)"
+        shift = origin[k] if k < len(origin) else 0.0
+        return f"{body} {name}" + (f" - {shift:g}" if shift else "")
+
+    if len(main) >= 2:
+        ax.set_xlabel(axis_label(names[0], 0))
+        ax.set_ylabel(axis_label(names[1], 1))
+    else:
+        ax.set_xlabel("recorded row of the trace")
+        ax.set_ylabel(axis_label(names[0], 0))
+    ax.grid(alpha=0.3)
+    matches = sum(1 for rs in paths.values() if rs[0]["landed"] == rs[0]["cell"])
+    ax.set_title(run_title(run, f"{what}s of {len(paths)} elites" + ("" if style else " (the trace's main columns)")),
+                 fontsize=10)
+    bar = fig.colorbar(lc, ax=ax, shrink=0.8)
+    bar.set_label(f"final {body} {names[0]}".replace("  ", " "))
+    legend_below(fig, handles, labels, ncol=1, fontsize=8)
+    fig.subplots_adjust(left=0.12, right=0.95, top=0.91, bottom=0.16)
+    out.save(fig, f"traces-{slug(run.env)}-{slug(run.algorithm)}", "traces",
+             {"run": str(run.path), "elites": len(paths), "rows": len(rows), "replayed_as_stored": matches,
+              "columns": main, "source": str(Path(csv)), "epoch_cap": run.epoch_cap}, [run],
+             environment=run.env, algorithm=run.algorithm)

@@ -1,0 +1,344 @@
+"""REPORT.md, section by section. Each section is a function of the Report (below) that returns its
+Markdown lines; SECTIONS is the order they appear in. A new section is a function and an entry in
+SECTIONS; a new per-run quantity is a field of summary.py and a column here. Text a study adds by
+hand ([[addendum]] of study.toml) is appended to the section whose heading it names."""
+import collections
+import math
+from dataclasses import dataclass, field
+
+from .. import stats, tables
+from .sweep import read_estimate, read_invocations
+from .summary import epochs_text
+
+
+@dataclass
+class Report:
+    out: object                 # the report directory (Path)
+    envs: list                  # environment variants, in order
+    algs: list                  # experiment stems of algorithms, in order
+    runs: dict                  # (env, alg) -> [summary], every run of the selection found
+    figures: list               # qdplot.json entries
+    header: dict                # study.toml [header]: date, qdrun, machine, commands, notes, ...
+    selection: dict             # study.toml [selection]
+    addenda: list = field(default_factory=list)
+
+    @property
+    def every_run(self):
+        return [s for infos in self.runs.values() for s in infos]
+
+    @property
+    def caps(self):
+        return sorted({s["epoch_cap"] for s in self.every_run if s["epoch_cap"] is not None})
+
+    def name(self, alg):
+        return tables.algorithms().by_experiment[alg]["name"]
+
+    def figures_of(self, kind, env, alg=None):
+        """PNG figures of `kind` for an environment (and algorithm), in the order qdplot wrote them;
+        entries of an older qdplot.json without names are matched by their runs."""
+        name = self.name(alg) if alg else None
+        dirs = {str(s["dir"].resolve()) for s in (self.runs[(env, alg)] if alg else
+                                                  [s for a in self.algs for s in self.runs[(env, a)]])}
+        out = []
+        for f in self.figures:
+            if f["kind"] != kind or f["format"] != "png":
+                continue
+            if f.get("environment") is not None:
+                if f["environment"] == env and (alg is None or f.get("algorithm") == name):
+                    out.append(f["file"])
+            elif any(str(_resolve(self.out, r)) in dirs for r in f.get("runs", [])):
+                out.append(f["file"])
+        return out
+
+
+def _resolve(base, path):
+    from pathlib import Path
+    p = Path(path)
+    return (p if p.is_absolute() else base / "figures" / p).resolve()
+
+
+def fmt(x, digits=1):
+    return "n/a" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
+
+
+def percent(elites, of):
+    return fmt(100 * elites / of, 2) if of else "n/a"
+
+
+def ratio(measured, estimate):
+    return f"{measured / estimate:.2f}" if estimate > 0 else "n/a"
+
+
+def mixing_text(alg, summaries):
+    """The median over runs of the share of parameter-space offspring in each run's last loop, or '-'."""
+    values = [s["mixing"] for s in summaries if not math.isnan(s["mixing"])]
+    plotted = tables.algorithms().by_experiment[alg].get("mixing_ratio")
+    return fmt(stats.nearest(values, 50), 2) if plotted and values else "-"
+
+
+def cap_caption(summaries):
+    """A sentence for a table that holds capped runs, or None."""
+    caps = sorted({s["epoch_cap"] for s in summaries if s["epoch_cap"] is not None})
+    if not caps:
+        return None
+    return (f"**Autoencoder epochs capped at {' / '.join(map(str, caps))} per loop** in the runs marked so (column "
+            f"'autoencoder epochs per loop'); the paper trains up to {tables.algorithms().paper_epochs} with early "
+            "stopping, so PoMS, PoMS-no-jacobian and MAPE-DDE are handicapped in this table.")
+
+
+# ---- sections ---------------------------------------------------------------------------------
+
+def title(r):
+    lines = ["# PoMS reproduction report", ""]
+    if r.header.get("preface"):
+        lines += [r.header["preface"].rstrip("\n"), ""]
+    return lines
+
+
+def header(r):
+    h, sel = r.header, r.selection
+    built = collections.Counter(s["built_for"] for s in r.every_run)
+    if sel.get("evaluations") is not None:
+        budget = (f"{sel['evaluations']} evaluations per run (qdrun --evaluations: loops chosen per algorithm to "
+                  "reach at least this)")
+    elif sel.get("loops") is not None:
+        budget = f"experiment.loops = {sel['loops']} for every run"
+    else:
+        budget = "the experiment files' own (the paper's)"
+    caps = r.caps
+    lines = [f"- date: {h.get('date', '?')}", f"- qdrun: {h.get('qdrun', '?')}", f"- machine: {h.get('machine', '?')}",
+             "- runs made on: " + "; ".join(f"{m} ({n} run{'s' if n != 1 else ''})" for m, n in sorted(built.items())),
+             f"- seeds: {sel.get('seeds', '?')}", f"- budget: {budget}",
+             "- autoencoder epochs: " + (f"**capped at {' / '.join(map(str, caps))} per loop** "
+                                         "(representation.max_epochs; the paper allows 20 000 with early stopping, "
+                                         "so AE-based algorithms are handicapped in this report; every table and "
+                                         "figure they affect says so)" if caps else
+                                         "as in the experiment files (20 000 per loop, early stopping; no cap)")]
+    if sel.get("set"):
+        lines.append("- extra settings: " + ", ".join(f"`{s}`" for s in sel["set"]))
+    if h.get("sweep"):
+        lines.append(f"- sweep of this invocation: {h['sweep']}")
+    lines.append(f"- report command: `{h.get('command', '?')}`")
+    if h.get("regenerated"):
+        lines.append(f"- regenerated from this directory's files (study.toml, runs/): `{h['regenerated']}`")
+    lines.append(f"- commands are shown as run from {h.get('commands_from', 'the repository root')}")
+    for note in h.get("notes", []):
+        lines.append(f"- note: {note}")
+    lines.append("")
+    spaces = sorted({(s["index_space"], s["index_space_label"]) for s in r.every_run if s["index_space"]})
+    walker = "".join(f" The Walker's is also given in % of {n} = {label}, the reference's own index space, which the "
+                     "paper's percentages appear to use (experiments/README.md)." for n, label in spaces)
+    lines.append("Coverage is the percentage of all cells of the environment's grid." + walker + " Median and "
+                 "quartiles over seeds use numpy's 'nearest' rule, as the figures (and the reference's plots). Wall "
+                 "time is the run's own (cumulative over resumed sessions, training included); evaluations/s = "
+                 "evaluations / wall time with the run's worker count while other runs shared the machine.")
+    return lines
+
+
+def environment(r, env):
+    """One environment: the coverage table per algorithm, the figures, and every run."""
+    lines = ["", f"## {env}", ""]
+    env_runs = [s for a in r.algs for s in r.runs[(env, a)]]
+    cells = next((s["cells"] for s in env_runs if s["cells"]), 0)
+    index_space = next((s["index_space"] for s in env_runs if s["index_space"]), None)
+    # Coverage in % of the grid's cells, and for the Walker also in % of its index space.
+    of = [cells] + ([index_space] if index_space else [])
+    pct_heads = "".join(f"coverage % of {c} | " for c in of)
+    rows = []
+    for a in r.algs:
+        infos = r.runs[(env, a)]
+        done = [s for s in infos if s["status"] == "complete"]
+        name = r.name(a)
+        if not infos:
+            rows.append(f"| {name} | 0 |" + " |" * (7 + len(of)))  # 9 + len(of) columns
+            continue
+        if not done:  # only unfinished runs: no final coverage yet, and how far they got
+            rows.append(f"| {name} | 0/{len(infos)} | {max(s['evaluations'] for s in infos)} so far | "
+                        "none complete |" + " |" * (4 + len(of)) + f" {epochs_text(infos)} |")
+            continue
+        el = [s["elites"] for s in done]
+        walls = [s["wall"] for s in done]
+        rates = [s["evaluations"] / s["wall"] for s in done if s["wall"] > 0]
+        n = stats.nearest
+        pcts = "".join(f"{percent(n(el, 50), c)} ({percent(n(el, 25), c)}-{percent(n(el, 75), c)}) | " for c in of)
+        rows.append(f"| {name} | {len(done)}/{len(infos)} | {done[0]['evaluations']} | "
+                    f"{n(el, 50)} ({n(el, 25)}-{n(el, 75)}) | {pcts}{fmt(n(walls, 50))} | "
+                    f"{fmt(n([s['train'] for s in done], 50))} | {fmt(n(rates, 50), 0)} | "
+                    f"{mixing_text(a, done)} | {epochs_text(infos)} |")
+    caption = cap_caption(env_runs)
+    if caption:
+        lines += [caption, ""]
+    lines += ["| algorithm | complete runs | evaluations | final coverage, cells: median (q25-q75) | " + pct_heads +
+              "wall s / run (median) | of which training s | evaluations/s (median) | mixing ratio, last loop "
+              "(median) | autoencoder epochs per loop |",
+              "|---|---|---|---|" + "---|" * len(of) + "---|---|---|---|---|"] + rows
+    for f in r.figures_of("coverage", env):
+        lines += ["", f"![coverage {env}](figures/{f})", ""]
+    for kind in ("map", "traces", "latents", "losses"):
+        for a in r.algs:
+            for f in r.figures_of(kind, env, a):
+                lines.append(f"![{kind} {env} {r.name(a)}](figures/{f})")
+        lines.append("")
+    lines += ["<details><summary>every run</summary>", ""] + ([caption, ""] if caption else [])
+    lines += ["| algorithm | seed | loops | evaluations | elites | " + pct_heads + "wall s | training s | "
+              "evaluations/s | workers | status | mixing ratio, last loop | autoencoder epochs per loop |",
+              "|---|---|---|---|---|" + "---|" * len(of) + "---|---|---|---|---|---|---|"]
+    for a in r.algs:
+        for s in r.runs[(env, a)]:
+            rate = s["evaluations"] / s["wall"] if s["wall"] > 0 else math.nan
+            pcts = "".join(f"{percent(s['elites'], c)} | " for c in of)
+            lines.append(f"| {r.name(a)} | {s['seed']} | {s['loops']} | {s['evaluations']} | {s['elites']} | "
+                         f"{pcts}{fmt(s['wall'])} | {fmt(s['train'])} | {fmt(rate, 0)} | {s['workers']} | "
+                         f"{s['status']} | {mixing_text(a, [s])} | {epochs_text([s])} |")
+    lines += ["", "</details>"]
+    return lines
+
+
+def environments(r):
+    lines = []
+    for env in r.envs:
+        lines += environment(r, env)
+    return lines
+
+
+def time_per_million(r):
+    threads = r.header.get("hardware_threads", "?")
+    lines = ["", "## Time per million evaluations", "",
+             f"Sum of the runs' wall seconds divided by their evaluations, x 10^6 (one run's time per million "
+             f"evaluations, all algorithms of the environment together, training included, on this machine with "
+             f"{threads} hardware threads shared by the concurrent runs)." +
+             (" The autoencoder's training time depends on its epochs: a cap makes these times shorter than the "
+              "paper's settings would." if r.caps else ""), "",
+             "| environment | runs | seconds per 10^6 evaluations (one run) | autoencoder epochs per loop |",
+             "|---|---|---|---|"]
+    for env in r.envs:
+        env_runs = [s for a in r.algs for s in r.runs[(env, a)]]
+        complete = [s for s in env_runs if s["status"] == "complete"]
+        ev = sum(s["evaluations"] for s in complete)
+        if ev:
+            secs = sum(s["wall"] for s in complete) / ev * 1e6
+            lines.append(f"| {env} | {len(env_runs)} | {secs:.0f} | {epochs_text(env_runs)} |")
+    return lines
+
+
+def cost(r):
+    """The dry-run estimate made before the sweep's first run against the time the runs took."""
+    if not (r.out / "estimate.txt").exists():
+        return []
+    per_run, total = read_estimate(r.out / "estimate.txt")
+    invocations = read_invocations(r.out / "invocations.csv")
+    lines = ["", "## Cost: the estimate against the measured time", "",
+             "Before the sweep's first run, qdreport saved its plan and estimated cost (`qdrun --dry-run` of the "
+             "qdrun that ran the sweep, by the model of docs/performance.md at that revision) in "
+             "REPORT_DIR/estimate.txt; every invocation of the sweep is logged in "
+             "REPORT_DIR/invocations.csv. A run's measured time is its own wall time (one worker, so about one core "
+             "while the sweep runs one run per core); the estimate is in core-hours.", "",
+             "| environment | algorithm | runs compared | estimate, core-h per run (median) | measured, wall h per run "
+             "(median) | measured / estimate |", "|---|---|---|---|---|---|"]
+    est_sum = wall_sum = 0.0
+    compared = 0
+    for env in r.envs:
+        for a in r.algs:
+            pairs = [(per_run[f"{env}-{a}/seed-{s['seed']}"], s["wall"] / 3600) for s in r.runs[(env, a)]
+                     if s["status"] == "complete" and f"{env}-{a}/seed-{s['seed']}" in per_run and s["wall"] > 0]
+            if not pairs:
+                continue
+            compared += len(pairs)
+            est_sum += sum(e for e, _ in pairs)
+            wall_sum += sum(w for _, w in pairs)
+            e, w = stats.nearest([e for e, _ in pairs], 50), stats.nearest([w for _, w in pairs], 50)
+            lines.append(f"| {env} | {r.name(a)} | {len(pairs)} | {e:.3f} | {w:.3f} | {ratio(w, e)} |")
+    lines.append("")
+    if compared:
+        lines.append(f"All {compared} compared runs: estimate {est_sum:.2f} core-h, measured {wall_sum:.2f} h of run "
+                     f"wall time (ratio {ratio(wall_sum, est_sum)}).")
+    if total:
+        text = (f"The whole sweep: estimate {total['core_h']:.2f} core-hours, about {total['wall_h']:.2f} h of wall "
+                f"time with {total['jobs']} at a time on {total['cores']} cores")
+        if compared and compared == len(per_run):
+            jobs = total["jobs"]
+            text += (f"; measured: the runs' wall times add to {wall_sum:.2f} h, {wall_sum / jobs:.2f} h with {jobs} at "
+                     f"a time (ratio {ratio(wall_sum / jobs, total['wall_h'])})")
+        elif compared:
+            text += f" ({len(per_run) - compared} of its {len(per_run)} runs not complete yet)"
+        lines.append(text + ".")
+    if invocations:
+        secs = sum(float(i.get("wall_seconds") or 0) for i in invocations)
+        unknown = sum(1 for i in invocations if not i.get("wall_seconds"))
+        text = (f"The sweep ran in {len(invocations)} invocation{'s' if len(invocations) != 1 else ''} of qdreport, "
+                f"{secs / 3600:.2f} h of wall time in all" +
+                (f" ({unknown} of them killed without logging its time)" if unknown else ""))
+        if total and compared == len(per_run):
+            text += f" (ratio to the estimate {ratio(secs / 3600, total['wall_h'])})"
+        lines.append(text + ": this includes runs interrupted and resumed, and anything else the machine did.")
+    return lines
+
+
+def lengthening(r):
+    """Per environment: the breeding runs' time per evaluation in each loop against their loop 0's,
+    the quantity an experiment file's [cost] table states for qdrun --dry-run."""
+    algs = tables.algorithms()
+    lines = []
+    for env in r.envs:
+        per_loop, middles, n = {}, {}, 0
+        for a in r.algs:
+            if algs.is_sampler(a):  # random search: its episodes do not lengthen as the archive spreads
+                continue
+            for s in r.runs[(env, a)]:
+                rates, ends = s["loop_rates"], s["loop_ends"]
+                if not rates.get(0) or s["status"] != "complete":
+                    continue
+                n += 1
+                for L, rate in rates.items():
+                    if L >= 1:
+                        per_loop.setdefault(L, []).append(rate / rates[0])
+                        middles[L] = (int(ends[L - 1]["evaluations"]) + int(ends[L]["evaluations"])) // 2
+        loops = [L for L in sorted(per_loop) if len(per_loop[L]) == n]
+        if not loops:
+            continue
+        if not lines:
+            lines = ["", "## Episode lengthening: time per evaluation against loop 0's", "",
+                     "The mean over the complete runs of the algorithms that breed from elites (random search left "
+                     "out) of each loop's wall time per evaluation (training out) divided by the run's loop 0's. "
+                     "An experiment file's `[cost]` table states this for `qdrun --dry-run` (docs/user-guide.md, "
+                     "\"How long will it take\"); the lines under each table are that table for these runs."]
+        means = [sum(per_loop[L]) / n for L in loops]
+        lines += ["", f"{env}, {n} runs:", "", "| loop | " + " | ".join(map(str, loops)) + " |",
+                  "|---|" + "---|" * len(loops),
+                  "| evaluations at its middle | " + " | ".join(str(middles[L]) for L in loops) + " |",
+                  "| time per evaluation / loop 0's | " + " | ".join(f"{m:.2f}" for m in means) + " |", "",
+                  "```toml", "[cost]",
+                  "evaluations = [0, " + ", ".join(str(middles[L]) for L in loops) + "]",
+                  "offspring_time = [1.0, " + ", ".join(f"{m:.2f}" for m in means) + "]", "```"]
+    return lines
+
+
+def revisions(r):
+    return ["", f"Git revisions of the runs: {', '.join(sorted({s['git'] for s in r.every_run}))}."]
+
+
+SECTIONS = [title, header, environments, time_per_million, cost, lengthening, revisions]
+
+
+def render(r):
+    """REPORT.md's text: every section, and at the end of the part under each "## " heading, the
+    addenda that name that heading."""
+    lines = []
+    for section in SECTIONS:
+        lines += section(r)
+    parts, current = [], []
+    for line in lines:
+        if line.startswith("## ") and current:
+            parts.append(current)
+            current = []
+        current.append(line)
+    parts.append(current)
+    out = []
+    for part in parts:
+        while part and part[-1] == "" and any(a.get("after") == part[0] for a in r.addenda):
+            part = part[:-1]
+        out += part
+        for add in r.addenda:
+            if add.get("after") == part[0]:
+                out += ([] if out and out[-1] == "" else [""]) + [add["text"].strip("\n"), ""]
+    return "\n".join(out).rstrip("\n") + "\n"

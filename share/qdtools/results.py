@@ -1,0 +1,162 @@
+"""Studies in results/: what a study keeps of its runs, and the check that a repository commits
+nothing bulky (results/README.md states the rule).
+
+A study keeps, per run, what a reader needs to check a claim: config.toml, provenance.toml,
+grid.toml, status, training.csv (and pca.csv), metrics.csv as metrics.csv.gz, and the final archive
+without its parameters as archive.csv.gz (index, objective, measures_*, recn_error). Never the
+per-epoch losses, the parameters, checkpoints, datasets or snapshots."""
+import gzip
+import json
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+from .figures.output import MANIFEST, compact_png, read_manifest
+from .report import study, summary
+from .runs import Run, csv_header, is_run_dir, open_text
+
+KEEP = ("config.toml", "provenance.toml", "grid.toml", "status", "training.csv", "pca.csv", "summary.toml")
+COMPRESS = ("metrics.csv",)
+# Figures a study's files cannot give again (they need parameters, checkpoints or per-epoch logs):
+# copied as drawn. Coverage and maps are drawn again from the kept files (qdreport --regenerate).
+KEPT_FIGURES = ("traces", "latents", "losses")
+
+# What a run writes that no study commits: per-epoch logs, parameters, checkpoints, datasets,
+# snapshots, a faulty offspring's parameters, replay data.
+BULKY = [
+    (re.compile(r"(^|/)losses\.csv(\.gz)?$"), "per-epoch training log"),
+    (re.compile(r"\.bin(\.gz)?$"), "checkpoint, archive state or dataset"),
+    (re.compile(r"(^|/)archive/loop-\d+\.csv(\.gz)?$"), "archive snapshot"),
+    (re.compile(r"(^|/)fault-offspring\.csv(\.gz)?$"), "a faulty offspring's parameters"),
+    (re.compile(r"(^|/)figures/data/"), "replayed trajectories or latent codes (qdplot's data/)"),
+    (re.compile(r"(^|/)(lock|qdrun\.log|sweep\.log)$"), "a run's lock or log"),
+]
+BUDGET_RESULTS = 10 * 1000 * 1000   # bytes tracked under results/
+BUDGET_SOURCE = 4 * 1000 * 1000     # bytes tracked outside results/
+LARGEST_PLAIN = 64 * 1000           # a larger text file under results/ is stored gzip-compressed
+
+
+def tracked_files(root):
+    """The files git tracks under root (the working tree's copies); every file outside build*/, runs/,
+    out/ and .git when root is no git work tree (an unpacked archive)."""
+    root = Path(root)
+    try:
+        out = subprocess.run(["git", "-C", str(root), "ls-files", "-z"], capture_output=True, check=True).stdout
+        return [root / p for p in out.decode().split("\0") if p and (root / p).is_file()]
+    except (OSError, subprocess.CalledProcessError):
+        files = []
+        for dirpath, dirnames, filenames in os.walk(root):
+            rel = Path(dirpath).relative_to(root)
+            if rel.parts and (rel.parts[0].startswith("build") or rel.parts[0] in ("runs", "out", ".git")):
+                dirnames[:] = []
+                continue
+            files += [Path(dirpath) / f for f in filenames]
+        return files
+
+
+def holds_parameters(path):
+    """Whether an archive file has solution_* (parameter) columns."""
+    try:
+        return any(c.startswith("solution_") for c in csv_header(path))
+    except (OSError, EOFError, UnicodeDecodeError):
+        return False
+
+
+def check(root, files=None):
+    """Failures of the rule for the files tracked under `root` (or `files`, paths under it)."""
+    root = Path(root)
+    files = tracked_files(root) if files is None else [Path(f) for f in files]
+    failures, inside, outside = [], 0, 0
+    for f in files:
+        rel = f.relative_to(root).as_posix()
+        size = f.stat().st_size
+        if rel.startswith("results/"):
+            inside += size
+        else:
+            outside += size
+        for pattern, what in BULKY:
+            if pattern.search(rel):
+                failures.append(f"{rel}: {what}; a study keeps only what results/README.md lists")
+        if re.search(r"(^|/)archive(-cells)?\.csv(\.gz)?$", rel) and holds_parameters(f):
+            failures.append(f"{rel}: an archive with the elites' parameters (solution_* columns); keep it without "
+                            "them (share/qdresults does)")
+        if rel.startswith("results/") and size > LARGEST_PLAIN and not rel.endswith((".gz", ".png")):
+            failures.append(f"{rel}: {size} bytes uncompressed; store it as {Path(rel).name}.gz")
+    if inside > BUDGET_RESULTS:
+        failures.append(f"results/ tracks {inside} bytes, more than its budget of {BUDGET_RESULTS} (results/README.md)")
+    if outside > BUDGET_SOURCE:
+        failures.append(f"the tree outside results/ tracks {outside} bytes, more than its budget of {BUDGET_SOURCE}")
+    return failures, inside, outside
+
+
+def gzip_copy(src, dst, lines=None):
+    """Writes src (plain text) to dst.gz, reproducibly (no name or time in the gzip header)."""
+    with open_text(src) as f, open(dst, "wb") as raw:
+        with gzip.GzipFile(filename="", mode="wb", compresslevel=9, fileobj=raw, mtime=0) as z:
+            for line in (lines(f) if lines else f):
+                z.write(line.encode())
+
+
+def without_parameters(f):
+    """archive.csv's lines without the solution_* columns (which come last)."""
+    header = f.readline().rstrip("\n").split(",")
+    keep = len([c for c in header if not c.startswith("solution_")])
+    if header[keep:] and not all(c.startswith("solution_") for c in header[keep:]):
+        raise ValueError("archive.csv: solution_* columns are not the last")
+    yield ",".join(header[:keep]) + "\n"
+    for line in f:
+        yield ",".join(line.rstrip("\n").split(",", keep)[:keep]) + "\n"
+
+
+def machine_paths(text, replacements):
+    for path, name in replacements:
+        text = text.replace(path, name)
+    return text
+
+
+def slim_run(src, dst, replacements=()):
+    """Copies what a study keeps of the run directory src to dst, with summary.toml holding the
+    quantities the report needs from files the study does not keep (report/summary.py, KEPT)."""
+    dst.mkdir(parents=True, exist_ok=True)
+    values = summary.kept(Run(src)) if summary.KEPT else {}
+    if values:
+        (dst / summary.SUMMARY).write_text("# From the full run, which kept files this copy does not "
+                                            "(report/summary.py, KEPT)\n" +
+                                            "".join(f"{k} = {study.toml_value(v)}\n" for k, v in values.items()))
+    for name in KEEP:
+        if (src / name).exists():
+            text = (src / name).read_text()
+            (dst / name).write_text(machine_paths(text, replacements) if name.endswith(".toml") else text)
+    for name in COMPRESS:
+        if (src / name).exists():
+            gzip_copy(src / name, dst / f"{name}.gz")
+    if (src / "archive.csv").exists():
+        gzip_copy(src / "archive.csv", dst / "archive.csv.gz", without_parameters)
+
+
+def publish(report_dir, study_dir):
+    """Copies a qdreport directory into a study: the report's records, every run slimmed, the
+    figures the kept files cannot give again (compact). The caller regenerates the report there."""
+    report_dir, study_dir = Path(report_dir), Path(study_dir)
+    if (study_dir / "runs").exists():
+        raise FileExistsError(f"{study_dir} already holds a study")
+    study_dir.mkdir(parents=True, exist_ok=True)
+    for name in ("study.toml", "estimate.txt", "invocations.csv"):
+        if (report_dir / name).exists():
+            shutil.copy2(report_dir / name, study_dir / name)
+    replacements = [(str(report_dir.resolve()), "REPORT_DIR"), (str(Path.home()), "~")]
+    runs = sorted(p.parent for p in (report_dir / "runs").rglob("config.toml") if is_run_dir(p.parent))
+    for run in runs:
+        slim_run(run, study_dir / "runs" / run.relative_to(report_dir / "runs"), replacements)
+    figures = study_dir / "figures"
+    figures.mkdir(exist_ok=True)
+    kept = []
+    for entry in read_manifest(report_dir / "figures"):
+        if entry["kind"] in KEPT_FIGURES and entry["format"] == "png":
+            compact_png(report_dir / "figures" / entry["file"], figures / entry["file"])
+            kept.append(dict(entry, runs=[machine_paths(r, replacements) for r in entry["runs"]]))
+    (figures / MANIFEST).write_text(json.dumps({"dpi": 100, "files": kept}, indent=1) + "\n")
+    return len(runs), len(kept)
+

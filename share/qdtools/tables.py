@@ -1,0 +1,122 @@
+"""The tables of share/, read once: algorithms.toml (the paper's algorithms, their colours and the
+paper's constants) and environments.toml (variant names, trajectory columns, map orientation).
+
+Nothing else in the tools spells an algorithm or environment name: a new algorithm or environment
+variant is an entry in these files (tests/docs/check_docs.py checks the README against them)."""
+import functools
+import tomllib
+from pathlib import Path
+
+from . import ToolError
+
+SHARE = Path(__file__).resolve().parent.parent  # share/ in the source tree, <prefix>/share/qd installed
+
+
+def load(name, share=SHARE):
+    path = Path(share) / name
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except OSError as e:
+        raise ToolError(f"cannot read {path}: {e.strerror} (it is installed beside the qdtools package)") from e
+    except tomllib.TOMLDecodeError as e:
+        raise ToolError(f"{path}: {e}") from e
+
+
+class Algorithms:
+    """share/algorithms.toml: one entry per algorithm of the paper, in legend order."""
+
+    def __init__(self, table):
+        self.entries = table["algorithm"]
+        self.paper_epochs = table["paper"]["autoencoder_epochs"]
+        self.index_spaces = table["paper"].get("index_space", [])
+        self.by_pair = {(a["representation"], a["mutator"]): a for a in self.entries}
+        self.by_experiment = {a["experiment"]: a for a in self.entries}
+        self.by_name = {a["name"]: a for a in self.entries}
+        self.order = [a["name"] for a in self.entries]
+        self.experiments = [a["experiment"] for a in self.entries]
+
+    def name_of(self, representation, mutator):
+        a = self.by_pair.get((representation, mutator))
+        return a["name"] if a else None
+
+    def style(self, name):
+        """(colour, marker) of an algorithm; black dots for one the table does not know."""
+        a = self.by_name.get(name)
+        return (a["colour"], a["marker"]) if a else ("black", ".")
+
+    def rank(self, name):
+        """Legend order: the table's, then unknown names alphabetically."""
+        return (self.order.index(name) if name in self.order else len(self.order), name)
+
+    def plots_mixing_ratio(self, name):
+        return bool(self.by_name.get(name, {}).get("mixing_ratio"))
+
+    def is_sampler(self, experiment):
+        """Random search draws fresh policies every loop (its mutator is its loop-0 sampler)."""
+        a = self.by_experiment.get(experiment)
+        return bool(a) and a["mutator"] == a["initial"]
+
+    def index_space(self, config):
+        """The reference's own index space for a run's descriptor (a second coverage denominator,
+        [[paper.index_space]]): (cells, label), or (None, None)."""
+        desc = config.get("descriptor", {})
+        for entry in self.index_spaces:
+            if desc.get("type") == entry["descriptor"] and all(desc.get(k, v) == v for k, v in entry["when"].items()):
+                return entry["cells"], entry["label"]
+        return None, None
+
+
+class Environments:
+    """share/environments.toml: variant names, what trace columns are, how grids are oriented."""
+
+    def __init__(self, table):
+        self.suffixes = table.get("suffix", [])
+        self.by_type = {e["type"]: e for e in table.get("environment", [])}
+        self.descriptors = {d["type"]: d for d in table.get("descriptor", [])}
+
+    def variant(self, env):
+        """The name of a run's environment ([environment] table of config.toml) as the directories
+        of experiments/ name it: its type plus the suffixes whose conditions hold."""
+        name = env["type"]
+        for s in self.suffixes:
+            if s.get("environment", env["type"]) != env["type"]:
+                continue
+            if all(env.get(k) == v for k, v in s.get("when", {}).items()) and \
+                    not any(env.get(k) == v for k, v in s.get("unless", {}).items()):
+                name += s["suffix"]
+        return name
+
+    def trace_style(self, env_type):
+        """What the trace's main columns are for this environment type ({} for one we do not know)."""
+        return self.by_type.get(env_type, {})
+
+    def horizontal(self, descriptor_type, names):
+        """The grid dimensions drawn to the right, by index, when environments.toml names them for
+        this descriptor; None for the default (dimension 0 to the right)."""
+        entry = self.descriptors.get(descriptor_type)
+        if not entry:
+            return None
+        missing = [n for n in entry["horizontal"] if n not in names]
+        if missing:  # a grid that changed since the table was written: fall back to the rule
+            return None
+        return sorted(names.index(n) for n in entry["horizontal"])
+
+
+@functools.lru_cache(maxsize=None)
+def algorithms(share=SHARE):
+    return Algorithms(load("algorithms.toml", share))
+
+
+@functools.lru_cache(maxsize=None)
+def environments(share=SHARE):
+    return Environments(load("environments.toml", share))
+
+
+def experiment_variants(experiments_dir):
+    """The environment variants of an experiment directory: its subdirectories holding the files of
+    the algorithm table (experiments/<variant>/<experiment>.toml), test fixtures (smoke) left out."""
+    stems = set(algorithms().experiments)
+    root = Path(experiments_dir)
+    return sorted(d.name for d in root.iterdir()
+                  if d.is_dir() and d.name != "smoke" and stems & {p.stem for p in d.glob("*.toml")})

@@ -1,0 +1,78 @@
+"""qdplot's figures for a task the tools know nothing of (an environment of one's own): maps with
+dimension 0 to the right and square cells, a fitness map when fitness varies, and every figure
+with labelled axes, labelled ticks and a legend or colour bar."""
+import contextlib
+import io
+import json
+import unittest
+
+import fixtures
+
+from qdtools import plot_cli
+
+GRID = ([4, 3], ["x", "y"], [0.0, 0.0], [2.0, 1.5])  # cells of 0.5 x 0.5: square
+
+
+def plot(test, archive, kinds="coverage,maps", **run):
+    root = fixtures.tmpdir(test)
+    fixtures.write_run(root / "runs", grid=GRID, archive=archive, experiment_file="/x/decaying-iso.toml", **run)
+    with contextlib.redirect_stdout(io.StringIO()) as said:
+        plot_cli.plot([root / "runs"], root / "figures", kinds.split(","), formats=("png",), dump=True)
+    return root / "figures", said.getvalue()
+
+
+def dump(figures, stem):
+    return json.loads((figures / f"{stem}.json").read_text())
+
+
+class Figures(unittest.TestCase):
+    def test_every_figure_explains_itself(self):
+        # cells: 2 * 3 + 1 = 7 is x bin 2, y bin 1; 9 is x bin 3, y bin 0.
+        figures, _ = plot(self, [(7, 1.0, 1.2, 0.7), (9, 3.0, 1.8, 0.1), (0, 2.0, 0.1, 0.1)])
+        for stem in ("coverage-point-mass", "map-point-mass-decaying-iso", "map-point-mass-decaying-iso-fitness"):
+            fig = dump(figures, stem)["figure"]
+            self.assertTrue(fig["legends"] or fig["colorbars"], stem)
+            for ax in fig["axes"]:
+                self.assertTrue(ax["xlabel"] and ax["ylabel"], (stem, ax))
+                self.assertGreaterEqual(min(ax["xticks"], ax["yticks"]), 2, (stem, ax))
+        cov = dump(figures, "coverage-point-mass")["figure"]
+        self.assertTrue(any(t.startswith("decaying-iso (1 seed): 12 cells") for t in cov["legends"]), cov)
+        occupancy = dump(figures, "map-point-mass-decaying-iso")
+        self.assertEqual(occupancy["figure"]["legends"], ["elite (3)", "empty cell (9)"])
+        fitness = dump(figures, "map-point-mass-decaying-iso-fitness")
+        self.assertEqual((fitness["vmin"], fitness["vmax"]), (1.0, 3.0))
+        self.assertEqual(fitness["figure"]["colorbars"], ["fitness (archive.csv objective)"])
+
+    def test_dimension_zero_to_the_right_in_square_cells(self):
+        figures, _ = plot(self, [(7, 1.0, 1.2, 0.7)], kinds="maps")
+        m = dump(figures, "map-point-mass-decaying-iso")
+        self.assertEqual((m["horizontal"], m["vertical"]), ([0], [1]))
+        self.assertEqual(m["axes"][0]["cols"], 4)
+        self.assertEqual(m["axes"][0]["rows"], 3)
+        x0, y0, x1, y1 = m["axes"][0]["bbox"]
+        self.assertAlmostEqual((x1 - x0) / (y1 - y0), 4 / 3, delta=0.02)
+        self.assertIn("x (4 bins over [0, 2])", m["figure"]["axes"][0]["xlabel"])
+
+    def test_no_fitness_map_when_fitness_is_constant(self):
+        figures, said = plot(self, [(7, 0.0, 1.2, 0.7), (9, 0.0, 1.8, 0.1)], kinds="maps")
+        self.assertFalse((figures / "map-point-mass-decaying-iso-fitness.png").exists())
+        self.assertIn("no fitness map", said)
+        self.assertIn("every elite has the same fitness", said)
+
+    def test_loss_curves_label_several_ticks_whatever_their_range(self):
+        for low, high in ((100.0, 120.0), (80.0, 600.0), (1e-3, 50.0)):
+            root = fixtures.tmpdir(self)
+            run = fixtures.write_run(root / "runs", rep="autoencoder", mutator="my-op")
+            steps = [low + (high - low) * k / 9 for k in range(10)]
+            (run / "losses.csv").write_text("loop,epoch,train_loss,test_loss\n" + "".join(
+                f"{k // 5},{k % 5},{v},{v * 1.01 if k >= 5 else ''}\n" for k, v in enumerate(reversed(steps))))
+            with contextlib.redirect_stdout(io.StringIO()):
+                plot_cli.plot([root / "runs"], root / "figures", ["losses"], formats=("png",), dump=True)
+            fig = dump(root / "figures", "losses-point-mass-my-env-decaying")["figure"]
+            self.assertGreaterEqual(fig["axes"][0]["yticks"], 3, (low, high, fig))
+            self.assertEqual(fig["legends"], ["train loss (solid)", "test loss (dashed)"])
+            self.assertEqual(fig["colorbars"], ["loop"])
+
+
+if __name__ == "__main__":
+    unittest.main()

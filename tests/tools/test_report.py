@@ -1,0 +1,95 @@
+"""qdreport's parts: the study record, the sections and their addenda, commands without this
+machine's paths, and a report regenerated from a directory's files alone."""
+import sys
+import unittest
+
+import fixtures
+
+from qdtools import report_cli
+from qdtools.report import commands, study, sweep
+from qdtools.report.summary import summarise
+from qdtools.runs import Run
+
+ALG_PAIRS = {"poms": ("autoencoder", "poms"), "iso": ("none", "iso")}
+
+
+def make_study(out, elites):
+    """Runs of striker-<alg>/seed-<s> with the given final elites, and their study.toml."""
+    for (alg, seed), n in elites.items():
+        rep, mut = ALG_PAIRS[alg]
+        fixtures.write_run(out / "runs", name=f"striker-{alg}", seed=seed, env="striker", rep=rep, mutator=mut,
+                           descriptor="striker-contacts",
+                           metrics=[(0, 20, n // 2, 0.5 if alg == "poms" else ""),
+                                    (1, 40, n, 0.25 if alg == "poms" else "")])
+    study.write(out, {"selection": {"environments": ["striker"], "algorithms": ["poms", "iso"], "seeds": "1,2,3",
+                                    "evaluations": 40},
+                      "header": {"date": "2026-01-01 00:00 UTC", "qdrun": "qdrun 9 (git x)", "machine": "M",
+                                 "hardware_threads": 7, "command": "share/qdreport -o REPORT_DIR",
+                                 "notes": ["a note"], "preface": "> By hand."},
+                      "addendum": [{"after": "## striker", "text": "Added under striker.\n"}]})
+
+
+class Regenerate(unittest.TestCase):
+    def test_tables_from_the_files_alone(self):
+        out = fixtures.tmpdir(self) / "study"
+        make_study(out, {("poms", 1): 30, ("poms", 2): 10, ("poms", 3): 20, ("iso", 1): 40, ("iso", 2): 50})
+        argv, sys.argv = sys.argv, ["share/qdreport"]
+        try:
+            report_cli.regenerate(out)
+        finally:
+            sys.argv = argv
+        text = (out / "REPORT.md").read_text()
+        self.assertTrue(text.startswith("# PoMS reproduction report\n\n> By hand.\n\n- date: 2026-01-01 00:00 UTC\n"))
+        self.assertIn("- note: a note\n", text)
+        self.assertIn("on this machine with 7 hardware threads", text)
+        # 100 cells (no grid.toml): the median of (10, 20, 30) is 20; of (40, 50) it is 40 (rank 0.5 rounds to
+        # even, 0) and the 75th percentile 50 (rank 0.75 -> 1); PoMS's mixing ratio over its last loop.
+        self.assertIn("| PoMS | 3/3 | 40 | 20 (10-30) | 20.00 (10.00-30.00) |", text)
+        self.assertIn("| MAPE-Iso | 2/2 | 40 | 40 (40-50) | 40.00 (40.00-50.00) |", text)
+        self.assertRegex(text, r"\| PoMS \| 3/3 .* \| 0\.25 \| 20000 \(paper\) \|")
+        self.assertIn("![coverage striker](figures/coverage-striker.png)", text)
+        body = text.split("## striker", 1)[1]
+        self.assertIn("</details>\n\nAdded under striker.\n\n## Time per million evaluations", body)
+        self.assertTrue((out / "figures" / "coverage-striker.png").exists())
+        self.assertFalse((out / "figures" / "coverage-striker.svg").exists())  # a study keeps PNGs
+
+
+class Parts(unittest.TestCase):
+    def test_study_round_trip(self):
+        out = fixtures.tmpdir(self)
+        record = {"selection": {"environments": ["a"], "seeds": "1", "set": ["x.y=\"z\""]},
+                  "header": {"command": "it's \"quoted\"", "notes": [], "preface": "line 1\nline 2 \"\"\" end\n"},
+                  "addendum": [{"after": "## Cost", "text": "t\n"}]}
+        study.write(out, record)
+        self.assertEqual(study.read(out), record)
+
+    def test_commands_show_no_paths_of_this_machine(self):
+        out = fixtures.tmpdir(self) / "report"
+        shown = commands.Shown(out)
+        line = shown([commands.BASE / "share" / "qdreport", "-o", out / "runs", "/opt/elsewhere/qdrun"])
+        self.assertEqual(line, "share/qdreport -o REPORT_DIR/runs .../qdrun")
+
+    def test_estimate_and_invocations(self):
+        out = fixtures.tmpdir(self)
+        (out / "estimate.txt").write_text(
+            "# header\nestimate (...):\n  striker-iso/seed-1   0.25 core-h: 22000 evaluations ...\n"
+            "sweep: estimated 0.50 core-hours (episodes 0.5); on this machine, 2 at a time on 2 cores: about 0.25 hours\n")
+        per_run, total = sweep.read_estimate(out / "estimate.txt")
+        self.assertEqual(per_run, {"striker-iso/seed-1": 0.25})
+        self.assertEqual(total, {"core_h": 0.5, "jobs": 2, "cores": 2, "wall_h": 0.25})
+        sweep.log_invocation(out / "invocations.csv", "T1", "", "running", "")
+        sweep.log_invocation(out / "invocations.csv", "T1", "12.5", "0", "3 runs: 3 finished, 0 failed")
+        self.assertEqual(sweep.read_invocations(out / "invocations.csv"),
+                         [{"started_utc": "T1", "wall_seconds": "12.5", "exit_code": "0",
+                           "summary": "3 runs: 3 finished; 0 failed"}])
+
+    def test_loop_rates(self):
+        run = Run(fixtures.write_run(fixtures.tmpdir(self), metrics=[(0, 20, 5), (1, 30, 8), (1, 40, 9)]))
+        s = summarise(run)  # wall seconds 0.1, 0.2, 0.3 at 20, 30, 40 evaluations; no training
+        self.assertAlmostEqual(s["loop_rates"][0], 0.1 / 20)
+        self.assertAlmostEqual(s["loop_rates"][1], (0.3 - 0.1) / 20)
+        self.assertEqual((s["elites"], s["evaluations"], s["status"]), (9, 40, "complete"))
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,105 @@
+"""qdtools.results: what a study keeps of a run, and the check that fails when a repository
+commits a run's bulky files (the test command runs it on this repository: results.check)."""
+import gzip
+import shutil
+import subprocess
+import unittest
+from unittest import mock
+
+import fixtures
+
+from qdtools import results, runs
+from qdtools.report import summary
+
+
+def git(repo, *args):
+    subprocess.run(["git", "-C", str(repo), *args], check=True, capture_output=True)
+
+
+class Check(unittest.TestCase):
+    def setUp(self):
+        self.repo = fixtures.tmpdir(self)
+        git(self.repo, "init", "-q")
+        (self.repo / "README.md").write_text("source\n")
+
+    def commit_run(self, name, slim):
+        run = fixtures.write_run(self.repo / "results" / "study" / "src", archive=[(1, 0.5, 0.1, 0.2)])
+        dest = self.repo / "results" / "study" / "runs" / name
+        if slim:
+            results.slim_run(run, dest)
+        else:
+            shutil.copytree(run, dest)
+            (dest / "losses.csv").write_text("loop,epoch,train_loss,test_loss\n0,0,1,\n")
+            (dest / "checkpoint.bin").write_bytes(b"\0" * 10)
+        shutil.rmtree(run.parent.parent)
+        git(self.repo, "add", "-A")
+        return dest
+
+    def test_a_slim_study_passes(self):
+        self.commit_run("point-mass-iso/seed-1", slim=True)
+        failures, inside, outside = results.check(self.repo)
+        self.assertEqual(failures, [])
+        self.assertEqual(outside, len("source\n"))
+        self.assertGreater(inside, 0)
+
+    def test_bulky_files_fail(self):
+        self.commit_run("point-mass-iso/seed-1", slim=False)
+        failures = "\n".join(results.check(self.repo)[0])
+        self.assertIn("seed-1/losses.csv: per-epoch training log", failures)
+        self.assertIn("seed-1/checkpoint.bin: checkpoint", failures)
+        self.assertIn("seed-1/archive.csv: an archive with the elites' parameters", failures)
+
+    def test_only_tracked_files_count(self):
+        (self.repo / "losses.csv").write_text("not committed\n")
+        self.assertEqual(results.check(self.repo)[0], [])
+
+    def test_budgets_and_large_plain_files(self):
+        big = self.repo / "results" / "study" / "notes.txt"
+        big.parent.mkdir(parents=True)
+        big.write_text("x" * (results.LARGEST_PLAIN + 1))
+        git(self.repo, "add", "-A")
+        self.assertIn("uncompressed; store it as notes.txt.gz", results.check(self.repo)[0][0])
+        with mock.patch.object(results, "BUDGET_SOURCE", 3):
+            self.assertTrue(any("outside results/ tracks 7 bytes, more than its budget of 3" in f
+                                for f in results.check(self.repo)[0]))
+
+
+class Slim(unittest.TestCase):
+    def test_keeps_what_a_reader_needs_and_drops_the_parameters(self):
+        root = fixtures.tmpdir(self)
+        run = fixtures.write_run(root / "full", archive=[(1, 0.5, 0.1, 0.2), (4, 0.7, 0.3, 0.4)],
+                                 grid=([5], ["x"], [0], [1]))
+        (run / "losses.csv").write_text("loop,epoch\n")
+        (run / "dataset.bin").write_bytes(b"\1")
+        results.slim_run(run, root / "slim")
+        kept = sorted(p.name for p in (root / "slim").iterdir())
+        self.assertEqual(kept, ["archive.csv.gz", "config.toml", "grid.toml", "metrics.csv.gz", "provenance.toml",
+                                "status"])
+        with gzip.open(root / "slim" / "archive.csv.gz", "rt") as f:
+            self.assertEqual(f.read(), "index,objective,measures_0,measures_1,recn_error\n1,0.5,0.1,0.2,0\n"
+                                       "4,0.7,0.3,0.4,0\n")
+        self.assertEqual(repr(runs.read_csv(root / "slim" / "metrics.csv")), repr(runs.read_csv(run / "metrics.csv")))
+        a, b = runs.Run(run), runs.Run(root / "slim")
+        self.assertEqual((a.algorithm, a.final_elites(), a.cells), (b.algorithm, b.final_elites(), b.cells))
+        self.assertEqual(runs.read_archive(root / "slim").cells.tolist(), [1, 4])
+        first = (root / "slim" / "metrics.csv.gz").read_bytes()
+        results.slim_run(run, root / "again")
+        self.assertEqual((root / "again" / "metrics.csv.gz").read_bytes(), first)  # reproducible bytes
+
+    def test_quantities_of_the_full_run_are_kept_in_summary_toml(self):
+        root = fixtures.tmpdir(self)
+        run = fixtures.write_run(root / "full", archive=[(1, 0.5, 0.1, 0.2), (4, 0.7, 0.3, 0.4)])
+
+        def largest_parameter(r):  # needs the parameters, which a study does not keep
+            rows = runs.read_csv(r.path / "archive.csv")
+            return {"largest_parameter": max(abs(v) for row in rows for k, v in row.items() if k.startswith("solution_"))}
+
+        with mock.patch.object(summary, "KEPT", [largest_parameter]):
+            results.slim_run(run, root / "slim")
+            self.assertEqual(runs.read_toml(root / "slim" / "summary.toml"), {"largest_parameter": 0.5})
+            self.assertEqual(summary.summarise(runs.Run(root / "slim"))["largest_parameter"], 0.5)
+            self.assertEqual(summary.summarise(runs.Run(run))["largest_parameter"], 0.5)
+
+
+if __name__ == "__main__":
+    unittest.main()

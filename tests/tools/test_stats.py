@@ -1,0 +1,53 @@
+"""qdtools.stats: percentiles as numpy's 'nearest' rule, the coverage step function, moving means."""
+import math
+import unittest
+
+import fixtures
+import numpy as np
+
+from qdtools import runs, stats
+
+
+class Nearest(unittest.TestCase):
+    def test_equals_numpys_nearest_rule(self):
+        rng = np.random.default_rng(3)
+        for n in range(1, 12):
+            values = rng.integers(0, 50, n).tolist()
+            for q in (0, 25, 50, 75, 100, 37.5):
+                self.assertEqual(stats.nearest(values, q), np.percentile(values, q, method="nearest"), (values, q))
+
+    def test_halves_round_to_even_rank(self):
+        # 4 values: the median's rank is 1.5, which rounds to 2 (numpy's 'nearest'), not 1.
+        self.assertEqual(stats.nearest([10, 20, 30, 40], 50), 30)
+        self.assertEqual(stats.nearest([10, 20, 30, 40, 50, 60], 50), 30)  # rank 2.5 -> 2
+        self.assertTrue(math.isnan(stats.nearest([], 50)))
+
+    def test_percentile_per_column_skips_nan(self):
+        ys = [[1.0, 5.0, math.nan], [2.0, math.nan, math.nan], [3.0, 7.0, math.nan]]
+        got = stats.nearest_percentile(ys, 50)
+        self.assertEqual(got[0], 2.0)
+        self.assertEqual(got[1], 5.0)  # [5, 7]: rank 0.5 rounds to even, 0
+        self.assertTrue(math.isnan(got[2]))
+
+    def test_moving_mean(self):
+        self.assertEqual(stats.moving_mean([1, 2, 3, 4], 2).tolist(), [1.0, 1.5, 2.5, 3.5])
+        out = stats.moving_mean([math.nan, 2, math.nan, 4], 3)
+        self.assertTrue(math.isnan(out[0]))
+        self.assertEqual(out[1:].tolist(), [2.0, 2.0, 3.0])
+
+
+class Coverage(unittest.TestCase):
+    def test_step_function_in_percent_and_nan_past_the_end(self):
+        root = fixtures.tmpdir(self)
+        a = runs.Run(fixtures.write_run(root, seed=1, metrics=[(0, 20, 5), (1, 40, 10)]))
+        b = runs.Run(fixtures.write_run(root, seed=2, metrics=[(0, 20, 6), (1, 30, 7), (2, 60, 20)]))
+        x, ys = stats.coverage_series([a, b])
+        self.assertEqual(x.tolist(), [20, 30, 40, 60])
+        self.assertEqual(ys[0][:3].tolist(), [5.0, 5.0, 10.0])  # 100 cells: elites = percent
+        self.assertTrue(math.isnan(ys[0][3]))
+        self.assertEqual(ys[1].tolist(), [6.0, 7.0, 7.0, 20.0])
+        self.assertEqual(stats.loop_ends(b), [20, 30, 60])
+
+
+if __name__ == "__main__":
+    unittest.main()
