@@ -18,6 +18,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
@@ -213,6 +214,11 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
 
   const std::string holder = runtime::RunDirectory::holder(p.dir);
   if (!holder.empty()) throw InputError(p.dir.string() + " is in use by qdrun " + holder + "; wait for it or stop it");
+  // The run's log is appended to when it starts: checked now, before any run starts.
+  std::error_code ec;
+  const fs::file_status log = fs::symlink_status(p.dir / "qdrun.log", ec);
+  if (fs::exists(log) && !fs::is_regular_file(log))
+    throw InputError((p.dir / "qdrun.log").string() + " is not a regular file (a symlink, FIFO or directory)");
   const bool has_checkpoint = runtime::CheckpointStore::exists(p.dir);
   const bool has_archive = runtime::exists_nofollow(p.dir / "archive.csv");
   const std::string status = runtime::RunDirectory::read_status(p.dir);
@@ -267,6 +273,39 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
   return p;
 }
 
+// A sweep stopped by SIGINT, SIGTERM or SIGHUP passes the signal on to its runs, so each stops as
+// qdrun does alone (its status says where, --resume continues), waits for them and says so; no new
+// run starts. Runs are tracked where the handler can read them (async-signal-safe).
+constexpr std::size_t kMaxChildren = 4096;  // --jobs at most
+std::atomic<pid_t> g_children[kMaxChildren];
+volatile std::sig_atomic_t g_stop_signal = 0;
+
+void track_child(pid_t pid, bool running) {
+  for (auto& c : g_children) {
+    pid_t expected = running ? 0 : pid;
+    if (c.compare_exchange_strong(expected, running ? pid : 0)) return;
+  }
+}
+
+void on_sweep_stop(int sig) {
+  g_stop_signal = sig;
+  for (const auto& c : g_children)
+    if (const pid_t pid = c.load(); pid > 0) ::kill(pid, sig);
+}
+
+struct StopForwarding {
+  StopForwarding() {
+    struct sigaction sa;
+    std::memset(&sa, 0, sizeof(sa));
+    sa.sa_handler = on_sweep_stop;
+    sigemptyset(&sa.sa_mask);
+    for (const int sig : {SIGINT, SIGTERM, SIGHUP}) {
+      struct sigaction now;
+      if (::sigaction(sig, nullptr, &now) == 0 && now.sa_handler == SIG_DFL) ::sigaction(sig, &sa, nullptr);
+    }
+  }
+};
+
 double now_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
@@ -290,6 +329,7 @@ pid_t start_child(const std::string& exe, const std::vector<std::string>& args, 
     throw SystemError(std::string("cannot start a run: fork failed: ") + std::strerror(errno));
   }
   if (pid == 0) {
+    for (const int sig : {SIGINT, SIGTERM, SIGHUP}) ::signal(sig, SIG_DFL);  // not the sweep's forwarding
     ::prctl(PR_SET_PDEATHSIG, SIGKILL);
     if (::getppid() != parent) ::_exit(127);  // the sweep died before prctl took effect
     ::dup2(fd, STDOUT_FILENO);
@@ -545,9 +585,10 @@ int run_sweep(const SweepOptions& o,
   // two concurrent Walker fits 3 times slower (docs/performance.md). Results do not depend on it.
   if (std::getenv("OMP_THREAD_LIMIT") == nullptr) ::setenv("OMP_THREAD_LIMIT", std::to_string(workers).c_str(), 1);
   std::map<pid_t, std::pair<std::size_t, double>> running;  // pid -> (run, start time)
-  std::size_t next = 0;
+  const StopForwarding stop_forwarding;
+  std::size_t next = 0, stopped = 0;
   while (next < pending.size() || !running.empty()) {
-    while (next < pending.size() && static_cast<int>(running.size()) < concurrent) {
+    while (next < pending.size() && static_cast<int>(running.size()) < concurrent && !g_stop_signal) {
       const std::size_t i = pending[next++];
       PlannedRun& r = runs[i];
       std::error_code ec;
@@ -559,6 +600,7 @@ int run_sweep(const SweepOptions& o,
       for (const auto& p : o.plugin_paths) args.insert(args.end(), {"--plugin-path", p});
       const pid_t pid = start_child(exe, args, r.dir / "qdrun.log");
       running[pid] = {i, now_seconds()};
+      track_child(pid, true);
       std::printf("%s start  %s (%s)\n", tag(i).c_str(), r.label.c_str(), r.why.c_str());
       std::fflush(stdout);
     }
@@ -570,6 +612,7 @@ int run_sweep(const SweepOptions& o,
     }
     const auto it = running.find(pid);
     if (it == running.end()) continue;
+    track_child(pid, false);
     const auto [i, t0] = it->second;
     running.erase(it);
     const PlannedRun& r = runs[i];
@@ -578,6 +621,10 @@ int run_sweep(const SweepOptions& o,
     if (WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 0 && status.rfind("complete", 0) == 0) {
       ++finished;
       std::printf("%s done   %s in %.1f s\n", tag(i).c_str(), r.label.c_str(), seconds);
+    } else if (g_stop_signal && WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 128 + g_stop_signal) {
+      ++stopped;
+      std::printf("%s stop   %s after %.1f s: %s\n", tag(i).c_str(), r.label.c_str(), seconds,
+                  status.substr(0, status.find('\n')).c_str());
     } else {
       failed.push_back(r.label);
       const std::string how = WIFEXITED(wstatus) ? "exit code " + std::to_string(WEXITSTATUS(wstatus))
@@ -586,6 +633,15 @@ int run_sweep(const SweepOptions& o,
                   last_line(r.dir / "qdrun.log").c_str(), (r.dir / "qdrun.log").c_str());
     }
     std::fflush(stdout);
+  }
+  if (g_stop_signal) {
+    std::printf(
+        "sweep: stopped by signal %d (%s): %zu runs finished, %zu stopped, %zu failed, %zu not started; run the same "
+        "command again to finish the sweep\n",
+        static_cast<int>(g_stop_signal), strsignal(g_stop_signal), finished, stopped, failed.size(),
+        pending.size() - next);
+    std::fflush(stdout);
+    return 128 + g_stop_signal;
   }
   std::printf("sweep: %zu runs: %zu finished, %zu skipped (already complete), %zu failed\n", runs.size(), finished,
               skipped, failed.size());

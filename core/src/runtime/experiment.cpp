@@ -92,7 +92,12 @@ void put_value(std::ostream& o, const toml::node& n) {
   } else if (const auto* b = n.as_boolean()) {
     o << (b->get() ? "true" : "false");
   } else if (const auto* str = n.as_string()) {
-    o << toml_string(str->get());
+    // A literal string where one can hold it, as toml++ writes them.
+    const std::string& v = str->get();
+    if (v.find('\'') == std::string::npos && !has_control_character(v))
+      o << '\'' << v << '\'';
+    else
+      o << toml_string(v);
   } else if (const auto* a = n.as_array()) {
     o << '[';
     for (std::size_t k = 0; k < a->size(); ++k) {
@@ -371,9 +376,11 @@ std::string number_text(double v, bool integer) {
   return format_number(v);
 }
 
+// "[0, 1]"; an infinite bound is excluded: "[0, inf)", "(-inf, inf)".
 std::string range_text(const ParamSpec& s) {
   const bool integer = s.type == ParamType::kInteger || s.type == ParamType::kIntegerList;
-  return "[" + number_text(s.min, integer) + ", " + number_text(s.max, integer) + "]";
+  return (std::isinf(s.min) ? "(" : "[") + number_text(s.min, integer) + ", " + number_text(s.max, integer) +
+         (std::isinf(s.max) ? ")" : "]");
 }
 
 // Checks one value node against its spec and stores it in `cfg`.

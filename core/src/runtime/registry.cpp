@@ -419,7 +419,8 @@ void finish_probe(Probe& p) {
     const auto left =
         std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()).count();
     pollfd pfd{p.fd, POLLIN, 0};
-    const int ready = left > 0 ? ::poll(&pfd, 1, static_cast<int>(left)) : 0;
+    // Past the deadline, what the probe has written (or its end) still counts.
+    const int ready = ::poll(&pfd, 1, static_cast<int>(std::max<long long>(left, 0)));
     if (ready < 0 && errno == EINTR) continue;
     if (ready == 0) {
       p.timed_out = true;

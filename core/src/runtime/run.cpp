@@ -210,7 +210,13 @@ bool Run::run() {
     const int loop = next_loop_++;
     loop_.run_loop(loop);
     if (s.snapshot_every > 0 && loop % s.snapshot_every == 0) {
-      fs::create_directories(dir_.path() / "archive");
+      // The snapshots' directory is the run's own, never a symlink out of it.
+      const fs::path snapshots = dir_.path() / "archive";
+      std::error_code ec;
+      const fs::file_status st = fs::symlink_status(snapshots, ec);
+      if (fs::exists(st) && !fs::is_directory(st))
+        throw InputError(snapshots.string() + " is not a directory of the run (a symlink or a file); move it away");
+      fs::create_directories(snapshots);
       char name[32];
       std::snprintf(name, sizeof(name), "loop-%05d.csv", loop);
       write_archive_csv(dir_.path() / "archive" / name, archive_, s.snapshot_parameters);

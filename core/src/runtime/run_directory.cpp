@@ -133,7 +133,12 @@ void RunDirectory::lock() {
     if (busy) in_use();
   }
   // A new lock file naming this process, never the old one written in place: a hard-linked copy
-  // of this directory shares it.
+  // of this directory shares it. Whatever is in its place (a symlink, a FIFO) is replaced.
+  if (std::error_code ec; fs::is_directory(fs::symlink_status(path, ec))) {
+    if (dir_fd_ >= 0) ::close(dir_fd_);
+    dir_fd_ = -1;
+    throw InputError(path.string() + " is a directory, not qdrun's lock file; move it away");
+  }
   char host[256] = {0};
   ::gethostname(host, sizeof(host) - 1);
   write_file_atomic(path, "pid " + std::to_string(::getpid()) + " on host " + host + "\n");
