@@ -162,7 +162,7 @@ const char* stop_signal_name(int sig) {
     case SIGSTKFLT:
       return "SIGSTKFLT";
     default:
-      return "a real-time signal";
+      return "SIGRTMIN+";  // followed by its number
   }
 }
 
@@ -172,11 +172,7 @@ void on_stop_signal(int sig) {
   char* end = text + sizeof(text) - 2;
   char* at = put(text, end, "stopped by ");
   at = put(at, end, stop_signal_name(sig));
-  if (sig >= SIGRTMIN && sig <= SIGRTMAX) {
-    at = put(at, end, " (SIGRTMIN+");
-    at = put_int(at, end, sig - SIGRTMIN);
-    at = put(at, end, ")");
-  }
+  if (sig >= SIGRTMIN && sig <= SIGRTMAX) at = put_int(at, end, sig - SIGRTMIN);
   at = put(at, end, " at loop ");
   at = put_int(at, end, g_loop.load());
   at = put(at, end, " iteration ");

@@ -214,11 +214,16 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
 
   const std::string holder = runtime::RunDirectory::holder(p.dir);
   if (!holder.empty()) throw InputError(p.dir.string() + " is in use by qdrun " + holder + "; wait for it or stop it");
-  // The run's log is appended to when it starts: checked now, before any run starts.
+  // What the run will read and append to is checked now, before any run starts: a FIFO there
+  // would block it, a symlink lead out of the directory.
   std::error_code ec;
-  const fs::file_status log = fs::symlink_status(p.dir / "qdrun.log", ec);
-  if (fs::exists(log) && !fs::is_regular_file(log))
-    throw InputError((p.dir / "qdrun.log").string() + " is not a regular file (a symlink, FIFO or directory)");
+  for (const auto& e : fs::directory_iterator(p.dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name == "qdrun.log" || name == "status" || name == "config.toml" || name == "checkpoint.bin" ||
+        name == "dataset.bin" || name == "metrics.csv" || name == "training.csv" ||
+        name.rfind("archive-state-", 0) == 0)
+      runtime::require_regular_or_absent(e.path());
+  }
   const bool has_checkpoint = runtime::CheckpointStore::exists(p.dir);
   const bool has_archive = runtime::exists_nofollow(p.dir / "archive.csv");
   const std::string status = runtime::RunDirectory::read_status(p.dir);

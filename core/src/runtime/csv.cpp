@@ -256,4 +256,10 @@ bool exists_nofollow(const fs::path& path) {
   return ::lstat(path.c_str(), &st) == 0;
 }
 
+void require_regular_or_absent(const fs::path& path) {
+  struct stat st;
+  if (::lstat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+    throw InputError(not_regular(path, what_it_is(st.st_mode)));
+}
+
 }  // namespace qd::runtime

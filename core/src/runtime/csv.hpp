@@ -80,5 +80,7 @@ std::string read_run_file(const std::filesystem::path& path, std::uint64_t max_b
 std::string read_run_file_prefix(const std::filesystem::path& path, std::uint64_t size);
 // Whether `path` exists as anything (a dangling symlink too), without following it.
 bool exists_nofollow(const std::filesystem::path& path);
+// Throws qd::InputError naming `path` when something other than a regular file is there.
+void require_regular_or_absent(const std::filesystem::path& path);
 
 }  // namespace qd::runtime

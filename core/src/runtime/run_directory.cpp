@@ -139,17 +139,28 @@ void RunDirectory::lock() {
     dir_fd_ = -1;
     throw InputError(path.string() + " is a directory, not qdrun's lock file; move it away");
   }
+  // Locked before it takes the name, so whoever reads the name finds it held.
   char host[256] = {0};
   ::gethostname(host, sizeof(host) - 1);
-  write_file_atomic(path, "pid " + std::to_string(::getpid()) + " on host " + host + "\n");
-  const int fd = ::open(path.c_str(), O_RDWR | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
-  if (fd < 0) throw SystemError("cannot open " + path.string() + ": " + std::strerror(errno));
-  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
-    const int e = errno;
+  const std::string me = "pid " + std::to_string(::getpid()) + " on host " + host + "\n";
+  const fs::path tmp = path.string() + ".tmp";
+  ::unlink(tmp.c_str());
+  const int fd = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
+  if (fd < 0) throw SystemError("cannot create " + tmp.string() + ": " + std::strerror(errno));
+  try {
+    write_all(fd, me.data(), me.size(), tmp);
+  } catch (...) {
     ::close(fd);
-    if (e == EWOULDBLOCK) in_use();
-    if (dir_fd_ < 0) throw SystemError("cannot lock " + path.string() + ": " + std::strerror(e));
-    return;  // the directory lock holds
+    throw;
+  }
+  const bool file_locked = ::flock(fd, LOCK_EX | LOCK_NB) == 0;
+  const int e = errno;
+  if ((!file_locked && dir_fd_ < 0) || ::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int why = file_locked ? errno : e;
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    throw SystemError("cannot " + std::string(file_locked ? "write " : "lock ") + path.string() + ": " +
+                      std::strerror(why));
   }
   lock_fd_ = fd;
 }
