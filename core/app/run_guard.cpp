@@ -166,8 +166,19 @@ const char* stop_signal_name(int sig) {
   }
 }
 
+// The signal's default action, from inside its handler: the exit status says which signal.
+void die_by(int sig) {
+  struct sigaction dfl;
+  std::memset(&dfl, 0, sizeof(dfl));
+  dfl.sa_handler = SIG_DFL;
+  sigemptyset(&dfl.sa_mask);
+  ::sigaction(sig, &dfl, nullptr);
+  ::raise(sig);
+}
+
 void on_stop_signal(int sig) {
-  if (!take_report()) return;  // this thread is reporting something else already: let it finish
+  if (!g_running.load()) return die_by(sig);  // the run is over: its status stays as it ended
+  if (!take_report()) return;                 // this thread is reporting something else already: let it finish
   char text[4600];
   char* end = text + sizeof(text) - 2;
   char* at = put(text, end, "stopped by ");
@@ -201,16 +212,6 @@ const char* signal_name(int sig) {
     default:
       return "a fatal signal";
   }
-}
-
-// The signal's default action, from inside its handler: the exit status says which signal.
-void die_by(int sig) {
-  struct sigaction dfl;
-  std::memset(&dfl, 0, sizeof(dfl));
-  dfl.sa_handler = SIG_DFL;
-  sigemptyset(&dfl.sa_mask);
-  ::sigaction(sig, &dfl, nullptr);
-  ::raise(sig);
 }
 
 void on_fatal_signal(int sig) {

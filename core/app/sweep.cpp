@@ -626,7 +626,8 @@ int run_sweep(const SweepOptions& o,
     if (WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 0 && status.rfind("complete", 0) == 0) {
       ++finished;
       std::printf("%s done   %s in %.1f s\n", tag(i).c_str(), r.label.c_str(), seconds);
-    } else if (g_stop_signal && WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 128 + g_stop_signal) {
+    } else if (g_stop_signal && ((WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 128 + g_stop_signal) ||
+                                 (WIFSIGNALED(wstatus) && WTERMSIG(wstatus) == g_stop_signal))) {
       ++stopped;
       std::printf("%s stop   %s after %.1f s: %s\n", tag(i).c_str(), r.label.c_str(), seconds,
                   status.substr(0, status.find('\n')).c_str());
