@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Reliability campaigns (not part of the test suite; about 6 minutes on 2 cores): what hostile
+# Reliability campaigns (not part of the test suite; about 4 minutes on 2 cores): what hostile
 # conditions, kills and corruption do to runs. Every attack runs without a terminal or a prompt.
-#   scripts/reliability.sh [QDRUN] [KILLS=10] [FLIPS_PER_FILE=12]
+#   scripts/reliability.sh [QDRUN] [KILLS=20] [FLIPS_PER_FILE=40]
 #   QD_RELIABILITY_ONLY=REGEX scripts/reliability.sh ...   only the verdicts whose name matches, with
 #                                                          their logs; no campaigns
 # QDRUN is a qdrun of a build with tests (default build/bin/qdrun): the hostile plugins of
@@ -18,8 +18,8 @@
 set -uo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 qdrun=$(realpath "${1:-$root/build/bin/qdrun}")
-kills=${2:-10}
-flips=${3:-12}
+kills=${2:-20}
+flips=${3:-40}
 source "$root/tests/e2e/lib.sh"
 set +e
 build=$(dirname "$(dirname "$qdrun")")

@@ -280,8 +280,12 @@ int run_one(const Cli& cli, const std::string& command_line) {
 int replay_all(const Cli& cli);
 
 // Builds the run of an existing run directory from its own config.toml (for --replay, --latents).
-std::unique_ptr<Run> open_run_directory(const Cli& cli, const fs::path& dir, Registry& reg, int workers) {
+void require_run_directory(const fs::path& dir) {
   if (!fs::exists(dir / "config.toml")) throw InputError(dir.string() + ": not a run directory (no config.toml)");
+}
+
+std::unique_ptr<Run> open_run_directory(const Cli& cli, const fs::path& dir, Registry& reg, int workers) {
+  require_run_directory(dir);
   Document doc = Document::read(dir / "config.toml");
   setup_registry(reg, cli, doc.plugin_paths(), doc.recorded_search_path());
   RunOptions opt;
@@ -295,6 +299,7 @@ std::unique_ptr<Run> open_run_directory(const Cli& cli, const fs::path& dir, Reg
 // What --replay and --latents write goes beside a run, never over one of its own files (the run
 // could no longer be resumed): in the run directory only their own outputs or new names.
 void check_output_beside_run(const fs::path& out, const fs::path& dir, const std::string& option) {
+  require_run_directory(dir);
   std::error_code ec;
   const fs::path parent = fs::weakly_canonical(fs::absolute(out, ec).parent_path(), ec);
   if (!fs::is_directory(parent, ec))
