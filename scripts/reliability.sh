@@ -6,7 +6,7 @@
 #                                                          their logs; no campaigns
 # QDRUN is a qdrun of a build with tests (default build/bin/qdrun): the hostile plugins of
 # tests/plugins (BUILD/tests/plugins) and the unit tests (BUILD/bin/qd_unit_tests) come with it.
-# 1. Hostile conditions: the 20 cases of issue 32 (case N) and further ones (extra N), each ending
+# 1. Hostile conditions: the 20 cases of issue 32 (case N) and 29 further ones (extra N), each ending
 #    with the behaviour docs/user-guide.md documents. One verdict line each.
 # 2. Random kills: a run is killed with SIGKILL at a random moment, resumed, and compared with an
 #    uninterrupted run (archive byte for byte, logs without their time columns).
@@ -491,7 +491,33 @@ extra_25() {  # a library whose constructor never returns: left out after the pr
   grep -q "qd_ctor_hang.so: did not finish loading within 20 s" <<< "$out"
   grep -q "^  iso " <<< "$out"
 }
-for n in $(seq -w 1 25); do
+extra_26() {  # SIGCHLD ignored by the launcher: qdrun still knows how its children end
+  ignoring() { python3 -c "import signal, os, sys; signal.signal(signal.SIGCHLD, signal.SIG_IGN); os.execv(sys.argv[1], sys.argv[1:])" "$@"; }
+  ignoring "$Q" "$exp" "$root/experiments/smoke/uniform.toml" -o "$work/x26" --workers 1 --jobs 2 > "$work/x26.out"
+  grep -q "^sweep: 2 runs: 2 finished" "$work/x26.out" || { cat "$work/x26.out"; return 1; }
+  out=$(ignoring "$Q" --list --plugin-path "$plugins/hostile") && grep -q "qd_ctor_segv.so: crashed while being loaded" <<< "$out"
+}
+extra_27() {  # crash signals blocked by the launcher: a crash is still reported
+  fault_toml segfault > "$work/x27.toml"
+  (exec python3 -c "import signal, os, sys; signal.pthread_sigmask(signal.SIG_BLOCK, [signal.SIGSEGV, signal.SIGABRT]); os.execv(sys.argv[1], sys.argv[1:])" \
+     "$Q" "$work/x27.toml" --plugin-path "$plugins/fault" -q --backend threads --workers 2 -o "$work/x27" 2> "$work/x27.err") \
+    && got=0 || got=$?
+  [ $got -eq 139 ] && grep -q "^qdrun: failed: SIGSEGV (segmentation fault) in rollout()" "$work/x27.err" \
+    || { echo "exit $got: $(cat "$work/x27.err")"; return 1; }
+}
+extra_28() {  # an experiment file that is a symlink loop
+  ln -s "$work/x28.toml" "$work/x28.toml"
+  refused "x28.toml: cannot read the experiment file: Too many levels of symbolic links" "$Q" "$work/x28.toml" -o "$work/x28"
+}
+extra_29() {  # the same run resumed through a symlink to its directory while it runs: refused
+  d=$(stopped_run x29 "${long[@]}")
+  ln -s "$d" "$work/x29-link"
+  "$Q" --resume "$d" -q --workers 1 & first=$!
+  wait_for_line "$d/lock" "^pid $first " $first
+  refused "is in use by qdrun pid $first" "$Q" --resume "$work/x29-link" -q --workers 1
+  wait $first && complete "$d"
+}
+for n in $(seq -w 1 29); do
   title=$(grep -m1 "^extra_$n() {" "$0" | sed 's/.*# //')
   verdict "extra $n: $title" "extra_$n"
 done

@@ -566,6 +566,14 @@ int main(int argc, char** argv) {
   // A file size limit (ulimit -f) is a write error like a full disk (exit 4 naming the file), not
   // a silent kill by SIGXFSZ.
   ::signal(SIGXFSZ, SIG_IGN);
+  // What a launcher may leave behind that qdrun cannot work with: SIGCHLD ignored (children would
+  // be reaped by the kernel, and qdrun could not tell how its worker processes, plugin probes and
+  // sweep runs ended), or a crash signal blocked (a fault would end qdrun without its report).
+  ::signal(SIGCHLD, SIG_DFL);
+  sigset_t crashes;
+  sigemptyset(&crashes);
+  for (const int sig : {SIGCHLD, SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGSYS, SIGTRAP}) sigaddset(&crashes, sig);
+  ::sigprocmask(SIG_UNBLOCK, &crashes, nullptr);
   try {
     mpi_start(&argc, &argv);
   } catch (const std::exception& e) {

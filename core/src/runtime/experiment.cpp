@@ -257,6 +257,8 @@ Layered parse_file(const fs::path& file, int depth) {
   if (depth > 16) throw InputError(file.string() + ": includes nest more than 16 levels (a cycle?)");
   std::error_code ec;
   const fs::file_status st = fs::status(file, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory)
+    throw InputError(file.string() + ": cannot read the experiment file: " + ec.message());
   if (!fs::exists(st)) throw InputError(file.string() + ": no such experiment file");
   // A FIFO or device would block or never end: an experiment file is a regular file (a symlink to
   // one is fine), and far smaller than this.
