@@ -278,7 +278,7 @@ case_14() {  # SIGHUP, SIGQUIT, SIGUSR1 handled as SIGTERM; a closed pipe takes 
 loop0=(--set experiment.initial_samples=60000 --set experiment.loops=3)
 stop_in_loop_0() {  # ARGS...: starts a run with a long loop 0 and stops it there with SIGTERM
   "$Q" "$@" -q --workers 1 "${loop0[@]}" & pid=$!
-  for _ in $(seq 1 3000); do ls "$work"/c15/*/*/lock > /dev/null 2>&1 && break; sleep 0.01; done
+  for _ in $(seq 1 3000); do grep -qx running "$work"/c15/*/*/status 2> /dev/null && break; sleep 0.01; done
   sleep 0.2
   kill -TERM $pid; wait $pid && got=0 || got=$?
   [ $got -eq 143 ] || { echo "exit $got, expected 143 (loop 0 too short on this machine?)"; return 1; }

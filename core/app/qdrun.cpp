@@ -230,8 +230,17 @@ int run_one(const Cli& cli, const std::string& command_line) {
     }
     return kExitOk;
   }
+  opt.on_start = [] { app::own_run_directory(); };
   const auto owned = build([&] { return std::make_unique<Run>(std::move(ex), reg, std::move(opt)); });
   Run& run = *owned;
+  // Guarded before the directory is taken: a stop signal meanwhile ends qdrun with one line, and
+  // once the run owns the directory its status says where. Under mpirun, mpirun owns SIGINT and
+  // SIGTERM: it ends every rank, and the MPI backend reports it. Fatal signals and exit() in this
+  // process are reported in every case.
+  app::guard_run(run.directory(), terminal && !cli.quiet, mpi_size() <= 1);
+  struct EndOfRun {
+    ~EndOfRun() { app::end_of_run(); }
+  } end_of_run;
   if (!cli.resume.empty()) {
     check_same_plugins(cli, run);
     run.open_for_resume();
@@ -243,12 +252,6 @@ int run_one(const Cli& cli, const std::string& command_line) {
                  "qdrun: note: %s held the start of this run, which stopped before its first checkpoint (nothing "
                  "to keep): started again from loop 0\n",
                  run.directory().c_str());
-  // Under mpirun, mpirun owns SIGINT and SIGTERM: it ends every rank, and the MPI backend reports
-  // it. Fatal signals and exit() in this process are reported in every case.
-  app::guard_run(run.directory(), terminal && !cli.quiet, mpi_size() <= 1);
-  struct EndOfRun {
-    ~EndOfRun() { app::end_of_run(); }
-  } end_of_run;
   try {
     const bool finished = run.run();
     printer.finish();

@@ -24,6 +24,9 @@ constexpr int kExitPluginFault = 3;  // qdrun's exit code for a plugin fault dur
 char g_status_path[4096], g_status_tmp[4096], g_checkpoint[4096], g_run_dir[4096];
 bool g_terminal = false;
 std::atomic<bool> g_running{false};
+// Whether the run owns its directory: before, a stop signal ends qdrun without touching the status
+// (it may belong to another run, or say how an earlier session ended).
+std::atomic<bool> g_owns_directory{false};
 std::atomic<int> g_loop{0}, g_iteration{0};
 // The thread that reports how the run ended (0: none yet). Whichever thread faults, exits or takes
 // a stop signal first reports and ends the process; any other thread that gets there meanwhile
@@ -68,6 +71,11 @@ char* put_int(char* at, char* end, int v) {
 // temporary file is made anew (O_EXCL, no symlink followed), as write_file_atomic does.
 void report(char* text, char* at) {
   *at++ = '\n';
+  if (!g_owns_directory.load()) {
+    (void)!::write(STDERR_FILENO, "qdrun: ", 7);
+    (void)!::write(STDERR_FILENO, text, static_cast<std::size_t>(at - text));
+    return;
+  }
   ::unlink(g_status_tmp);
   const int fd = ::open(g_status_tmp, O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
   if (fd >= 0) {
@@ -184,11 +192,17 @@ void on_stop_signal(int sig) {
   char* at = put(text, end, "stopped by ");
   at = put(at, end, stop_signal_name(sig));
   if (sig >= SIGRTMIN && sig <= SIGRTMAX) at = put_int(at, end, sig - SIGRTMIN);
-  at = put(at, end, " at loop ");
-  at = put_int(at, end, g_loop.load());
-  at = put(at, end, " iteration ");
-  at = put_int(at, end, g_iteration.load());
-  at = put_resume_hint(at, end);
+  if (g_owns_directory.load()) {
+    at = put(at, end, " at loop ");
+    at = put_int(at, end, g_loop.load());
+    at = put(at, end, " iteration ");
+    at = put_int(at, end, g_iteration.load());
+    at = put_resume_hint(at, end);
+  } else {
+    at = put(at, end, " before the run started; ");
+    at = put(at, end, g_run_dir);
+    at = put(at, end, " is as it was");
+  }
   report(text, at);
   ::_exit(128 + sig);
 }
@@ -311,6 +325,10 @@ void guard_run(const std::filesystem::path& run_dir, bool terminal, bool handle_
     registered = true;
   }
   g_running.store(true);
+}
+
+void own_run_directory() noexcept {
+  g_owns_directory.store(true);
 }
 
 void end_of_run() noexcept {

@@ -29,6 +29,11 @@ namespace qd::app {
 // `handle_stop_signals` false: the stop signals are left to mpirun.
 void guard_run(const std::filesystem::path& run_dir, bool terminal, bool handle_stop_signals);
 
+// The run owns its directory (locked, checked, loaded; its status is about to say "running"):
+// from now on the handlers write the status. Before, a stop signal ends qdrun with one line and
+// leaves the directory as it was.
+void own_run_directory() noexcept;
+
 // The run is over (finished, stopped, or failed with an exception qdrun reports itself): exit()
 // is qdrun's own again.
 void end_of_run() noexcept;

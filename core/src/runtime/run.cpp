@@ -122,6 +122,8 @@ void Run::create_directory() {
       "loop,iteration,evaluations,elites,coverage,mixing_ratio,added,replaced,invalid,wall_seconds,train_seconds";
   for (const auto& n : c_.metric_names) header += "," + n;
   restarted_ = dir_.create(ex_.resolved_toml, header);
+  if (opt_.on_start) opt_.on_start();
+  dir_.set_status("running");
   dir_.write("grid.toml", grid_toml(c_.grid));
   write_provenance();
   next_loop_ = 0;
@@ -140,6 +142,7 @@ void Run::open_for_resume() {
   }
   dir_.open();
   load_checkpoint(true);
+  if (opt_.on_start) opt_.on_start();
   dir_.write_config(ex_.resolved_toml);
   dir_.write("grid.toml", grid_toml(c_.grid));
   dir_.set_status("running");

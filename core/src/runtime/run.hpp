@@ -47,6 +47,9 @@ struct RunOptions {
   std::string directory;     // run directory; empty = <output>/<name>/seed-<seed>
   std::string command_line;
   std::function<void(const Progress&)> on_progress;
+  // Called once the run owns its directory (locked, checked, loaded), right before its status
+  // becomes "running": from then on, whatever ends the run may write the status.
+  std::function<void()> on_start;
 };
 
 class Run final : private LoopObserver {

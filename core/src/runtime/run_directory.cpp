@@ -246,7 +246,6 @@ bool RunDirectory::create(const std::string& config, const std::string& metrics_
       break;
     }
   }
-  set_status("running");
   write_config(config);
   write_file_atomic(dir_ / "metrics.csv", metrics_header + "\n");
   write_file_atomic(dir_ / "training.csv", "loop,epochs,train_loss,test_loss,stopped_early,seconds\n");

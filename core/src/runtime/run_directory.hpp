@@ -38,9 +38,10 @@ class RunDirectory {
   const std::filesystem::path& path() const noexcept { return dir_; }
 
   // A fresh run: creates the directory, takes its lock and writes the config and the headers of
-  // the logs. An error if the directory holds a run with a checkpoint or results; the start of a
-  // run of the same configuration (`config`, compared as --resume would) that stopped before its
-  // first checkpoint is removed and started again: returns true then.
+  // the logs (the caller writes the status). An error if the directory holds a run with a
+  // checkpoint or results; the start of a run of the same configuration (`config`, compared as
+  // --resume would) that stopped before its first checkpoint is removed and started again: returns
+  // true then.
   bool create(const std::string& config, const std::string& metrics_header);
   // An existing run to continue: takes its lock; error if the directory is not writable.
   void open();
