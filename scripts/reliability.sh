@@ -6,7 +6,7 @@
 #                                                          their logs; no campaigns
 # QDRUN is a qdrun of a build with tests (default build/bin/qdrun): the hostile plugins of
 # tests/plugins (BUILD/tests/plugins) and the unit tests (BUILD/bin/qd_unit_tests) come with it.
-# 1. Hostile conditions: the 20 cases of issue 32 (case N) and 29 further ones (extra N), each ending
+# 1. Hostile conditions: the 20 cases of issue 32 (case N) and 30 further ones (extra N), each ending
 #    with the behaviour docs/user-guide.md documents. One verdict line each.
 # 2. Random kills: a run is killed with SIGKILL at a random moment, resumed, and compared with an
 #    uninterrupted run (archive byte for byte, logs without their time columns).
@@ -517,7 +517,14 @@ extra_29() {  # the same run resumed through a symlink to its directory while it
   refused "is in use by qdrun pid $first" "$Q" --resume "$work/x29-link" -q --workers 1
   wait $first && complete "$d"
 }
-for n in $(seq -w 1 29); do
+extra_30() {  # the reader of a sweep's lines goes away: the runs go on, the lost lines are reported
+  { "$Q" "$exp" --seeds 1,2 -o "$work/x30" --workers 1 --jobs 2 "${long[@]}" 2> "$work/x30.err" | head -n 1 > /dev/null; } \
+    && got=0 || got=$?  # (pipefail: qdrun's status)
+  [ "$got" -eq 4 ] && grep -q "cannot write to standard output: Broken pipe" "$work/x30.err" \
+    || { echo "exit $got: $(cat "$work/x30.err")"; return 1; }
+  for d in "$work"/x30/smoke-iso/seed-*; do complete "$d"; done
+}
+for n in $(seq -w 1 30); do
   title=$(grep -m1 "^extra_$n() {" "$0" | sed 's/.*# //')
   verdict "extra $n: $title" "extra_$n"
 done

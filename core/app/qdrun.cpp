@@ -21,6 +21,7 @@
 #include <boost/program_options.hpp>
 
 #include <fcntl.h>
+#include <poll.h>
 #include <signal.h>
 #include <unistd.h>
 #include <cerrno>
@@ -555,8 +556,10 @@ bool make_standard_descriptors_safe() {
 int check_standard_output(int code) {
   errno = 0;
   const bool flushed = std::fflush(stdout) == 0;
-  const int e = errno;
+  int e = errno;
   if (flushed && !std::ferror(stdout)) return code;
+  // An earlier write failed; a pipe whose reader went away still says so.
+  if (pollfd p{STDOUT_FILENO, POLLOUT, 0}; e == 0 && ::poll(&p, 1, 0) == 1 && (p.revents & POLLERR)) e = EPIPE;
   std::fprintf(stderr, "qdrun: system error: cannot write to standard output%s%s: what qdrun printed there is lost\n",
                e ? ": " : "", e ? std::strerror(e) : "");
   return code == kExitOk ? kExitSystem : code;

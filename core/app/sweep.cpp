@@ -280,7 +280,8 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
 
 // A sweep stopped by SIGINT, SIGTERM or SIGHUP passes the signal on to its runs, so each stops as
 // qdrun does alone (its status says where, --resume continues), waits for them and says so; no new
-// run starts. Runs are tracked where the handler can read them (async-signal-safe).
+// run starts. Runs are tracked where the handler can read them (async-signal-safe). SIGPIPE is
+// ignored.
 constexpr std::size_t kMaxChildren = 4096;  // --jobs at most
 std::atomic<pid_t> g_children[kMaxChildren];
 volatile std::sig_atomic_t g_stop_signal = 0;
@@ -300,6 +301,10 @@ void on_sweep_stop(int sig) {
 
 struct StopForwarding {
   StopForwarding() {
+    // A reader of the sweep's lines that goes away (qdrun ... | head) takes the lines, not the runs:
+    // qdrun reports the lost output when the sweep ends (exit 4).
+    if (struct sigaction now; ::sigaction(SIGPIPE, nullptr, &now) == 0 && now.sa_handler == SIG_DFL)
+      ::signal(SIGPIPE, SIG_IGN);
     struct sigaction sa;
     std::memset(&sa, 0, sizeof(sa));
     sa.sa_handler = on_sweep_stop;
