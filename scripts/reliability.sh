@@ -79,7 +79,7 @@ wait_for_line() {
   done
   echo "timed out waiting for $file"; return 1
 }
-complete() { grep -qx complete "$1/status" || { echo "status of $1: $(cat "$1/status" 2>&1)"; return 1; }; }
+is_complete() { grep -qx complete "$1/status" || { echo "status of $1: $(cat "$1/status" 2>&1)"; return 1; }; }
 long=(--set experiment.loops=6 --set experiment.iterations=1500)  # about 1 s a loop
 # The uninterrupted runs results are compared with, each made once, when a case first needs it:
 # $(reference ref), $(reference ref6), $(reference reflong).
@@ -118,7 +118,7 @@ case_02() {  # the lock file deleted while a run is live: a second resume is sti
   rm "$d/lock"
   refused "is in use by qdrun" "$Q" --resume "$d" -q --workers 1
   wait $first || { echo "the first run failed"; return 1; }
-  complete "$d"; same_results "$(reference reflong)" "$d"
+  is_complete "$d"; same_results "$(reference reflong)" "$d"
 }
 case_03() {  # an edited metrics.csv (same length) is refused naming it
   d=$(stopped_run c03)
@@ -135,7 +135,7 @@ PY
   sed -i '1s/elites/elitez/' "$d/metrics.csv"
   refused "metrics.csv: .*it was edited" "$Q" --resume "$d" -q
   cp "$work/c03.metrics" "$d/metrics.csv"
-  "$Q" --resume "$d" -q && complete "$d" && same_results "$(reference ref)" "$d"
+  "$Q" --resume "$d" -q && is_complete "$d" && same_results "$(reference ref)" "$d"
 }
 case_04() {  # a hard-linked copy (cp -al) extended: the original is never touched
   orig=$(full_run c04)
@@ -144,7 +144,7 @@ case_04() {  # a hard-linked copy (cp -al) extended: the original is never touch
   "$Q" --resume "$work/c04-copy" -q --set experiment.loops=6
   (cd "$orig" && find . -type f -exec md5sum {} + | sort) > "$work/c04.after"
   diff "$work/c04.before" "$work/c04.after" || { echo "extending the copy changed the original"; return 1; }
-  complete "$orig"
+  is_complete "$orig"
   "$Q" --resume "$orig" -q --set experiment.loops=6
   same_results "$(reference ref6)" "$orig"; same_results "$(reference ref6)" "$work/c04-copy"
 }
@@ -273,7 +273,7 @@ case_14() {  # SIGHUP, SIGQUIT, SIGUSR1 handled as SIGTERM; a closed pipe takes 
   signal_case HUP 129 && signal_case QUIT 131 && signal_case USR1 138
   "$Q" "$exp" -o "$work/c14-pipe" --workers 1 "${long[@]}" 2>&1 | head -n 1 > /dev/null
   [ "${PIPESTATUS[0]}" -eq 0 ] || { echo "with its pipe closed: exit ${PIPESTATUS[0]}"; return 1; }
-  d=$(run_dir "$work/c14-pipe"); complete "$d"; same_results "$(reference reflong)" "$d"
+  d=$(run_dir "$work/c14-pipe"); is_complete "$d"; same_results "$(reference reflong)" "$d"
 }
 loop0=(--set experiment.initial_samples=60000 --set experiment.loops=3)
 stop_in_loop_0() {  # ARGS...: starts a run with a long loop 0 and stops it there with SIGTERM
@@ -290,11 +290,11 @@ case_15() {  # SIGTERM in loop 0: one answer (resume, or the same command, start
   grep -Eq "^stopped by SIGTERM at loop 0 iteration 0; resume with qdrun --resume $d \(nothing was checkpointed yet: it starts again from loop 0\)$" "$d/status" \
     || { echo "status: $(cat "$d/status")"; return 1; }
   expect 0 "started again from loop 0" "$Q" --resume "$d" --workers 1
-  complete "$d"; same_results "$ref15" "$d"
+  is_complete "$d"; same_results "$ref15" "$d"
   rm -rf "$work/c15"
   stop_in_loop_0 "$exp" -o "$work/c15"
   expect 0 "started again from loop 0" "$Q" "$exp" -o "$work/c15" --workers 1 "${loop0[@]}"
-  d=$(run_dir "$work/c15"); complete "$d"; same_results "$ref15" "$d"
+  d=$(run_dir "$work/c15"); is_complete "$d"; same_results "$ref15" "$d"
 }
 case_16() {  # checkpoint.bin deleted from a run with results: the missing file is named
   d=$(stopped_run c16)
@@ -323,7 +323,7 @@ case_19() {  # a rename at resume is refused, and the sweep sees the run as its 
   refused "experiment.name is .*renamed.* \(the run directory is named after experiment.name\)" \
     "$Q" --resume "$d" -q --set experiment.name=renamed
   "$Q" "$exp" --seeds 7 -o "$work/c19" > "$work/c19.out" || { cat "$work/c19.out"; return 1; }
-  grep -q "resume: was 'stopped after loop 1" "$work/c19.out" && complete "$d" && same_results "$(reference ref)" "$d"
+  grep -q "resume: was 'stopped after loop 1" "$work/c19.out" && is_complete "$d" && same_results "$(reference ref)" "$d"
 }
 case_20() {  # the environment thread-safety check finds a shared Policy every time
   [ -x "$unit_tests" ] || { echo "no $unit_tests"; return 1; }
@@ -341,7 +341,7 @@ extra_01() {  # a symlink planted as status.tmp (or checkpoint.bin.tmp) is never
   ln -s "$work/x01.victim" "$d/status.tmp"; ln -s "$work/x01.victim" "$d/checkpoint.bin.tmp"
   "$Q" --resume "$d" -q
   [ "$(cat "$work/x01.victim")" = victim ] || { echo "the victim was overwritten"; return 1; }
-  complete "$d"; same_results "$(reference ref)" "$d"
+  is_complete "$d"; same_results "$(reference ref)" "$d"
 }
 extra_02() {  # metrics.csv a symlink to another run's: refused, the other run untouched
   a=$(full_run x02a); d=$(stopped_run x02)
@@ -371,7 +371,7 @@ extra_05() {  # the lock replaced by a FIFO: nothing blocks, the run goes on
   d=$(stopped_run x05)
   rm "$d/lock"; mkfifo "$d/lock"
   timeout 60 "$Q" --resume "$d" -q || { echo "resume with a FIFO lock failed"; return 1; }
-  complete "$d"; same_results "$(reference ref)" "$d"
+  is_complete "$d"; same_results "$(reference ref)" "$d"
 }
 extra_06() {  # a sweep whose run log is a FIFO: refused before anything starts
   d=$(stopped_run x06)
@@ -419,7 +419,7 @@ extra_12() {  # SIGHUP ignored by the launcher (nohup): the run goes on to the e
   (trap '' HUP; exec "$Q" "$exp" -o "$work/x12" -q --workers 1 "${long[@]}") & pid=$!
   for _ in $(seq 1 3000); do ls "$work"/x12/*/*/checkpoint.bin > /dev/null 2>&1 && break; sleep 0.01; done
   kill -HUP $pid; wait $pid || { echo "exit $? under nohup"; return 1; }
-  d=$(run_dir "$work/x12"); complete "$d"; same_results "$(reference reflong)" "$d"
+  d=$(run_dir "$work/x12"); is_complete "$d"; same_results "$(reference reflong)" "$d"
 }
 extra_13() {  # QD_PLUGIN_PATH naming a missing directory: said once, the run goes on
   expect 0 "warning: plugin directory /nowhere/plugins \(QD_PLUGIN_PATH\) does not exist" \
@@ -515,14 +515,14 @@ extra_29() {  # the same run resumed through a symlink to its directory while it
   "$Q" --resume "$d" -q --workers 1 & first=$!
   wait_for_line "$d/lock" "^pid $first " $first
   refused "is in use by qdrun pid $first" "$Q" --resume "$work/x29-link" -q --workers 1
-  wait $first && complete "$d"
+  wait $first && is_complete "$d"
 }
 extra_30() {  # the reader of a sweep's lines goes away: the runs go on, the lost lines are reported
   { "$Q" "$exp" --seeds 1,2 -o "$work/x30" --workers 1 --jobs 2 "${long[@]}" 2> "$work/x30.err" | head -n 1 > /dev/null; } \
     && got=0 || got=$?  # (pipefail: qdrun's status)
   [ "$got" -eq 4 ] && grep -q "cannot write to standard output: Broken pipe" "$work/x30.err" \
     || { echo "exit $got: $(cat "$work/x30.err")"; return 1; }
-  for d in "$work"/x30/smoke-iso/seed-*; do complete "$d"; done
+  for d in "$work"/x30/smoke-iso/seed-*; do is_complete "$d"; done
 }
 for n in $(seq -w 1 30); do
   title=$(grep -m1 "^extra_$n() {" "$0" | sed 's/.*# //')
@@ -543,7 +543,7 @@ for k in $(seq 1 "$kills"); do
   sleep "$(python3 -c "import random; print(random.uniform(0.3, 3.0))")"
   kill -9 $pid 2> /dev/null; wait $pid 2> /dev/null
   dir=$(run_dir "$work/k")
-  if grep -qx complete "$dir/status" 2> /dev/null; then identical=$((identical + 1)); continue; fi
+  if grep -qx is_complete "$dir/status" 2> /dev/null; then identical=$((identical + 1)); continue; fi
   if [ ! -e "$dir/checkpoint.bin" ]; then no_checkpoint=$((no_checkpoint + 1)); continue; fi
   "$Q" --resume "$dir" -q --workers 2 > /dev/null 2>&1
   if same_results "$full" "$dir" > /dev/null 2>&1; then identical=$((identical + 1)); else differed=$((differed + 1)); fi
