@@ -237,6 +237,12 @@ case_12() {  # hostile libraries on the plugin path: rejected by name, never fat
   grep -q "^  iso " <<< "$out" && grep -q "^  misspelt " <<< "$out"
   d=$(full_run c12 --plugin-path "$plugins/hostile")
   same_results "$(reference ref)" "$d"
+  # A run maps the libraries of its components and no other.
+  "$Q" "$exp" -o "$work/c12-maps" -q --workers 1 "${long[@]}" --plugin-path "$plugins/hostile" & pid=$!
+  for _ in $(seq 1 3000); do ls "$work"/c12-maps/*/*/checkpoint.bin > /dev/null 2>&1 && break; sleep 0.01; done
+  maps=$(grep -o '/qd_[a-z_]*\.so' /proc/$pid/maps | sort -u | tr '\n' ' ')
+  kill $pid; wait $pid 2> /dev/null || true
+  [ "$maps" = "/qd_arm.so /qd_basic.so " ] || { echo "the run mapped: $maps"; return 1; }
   "$Q" --resume "$d" -q --set experiment.loops=6 --plugin-path "$plugins/hostile" && same_results "$(reference ref6)" "$d"
 }
 case_13() {  # state files that are symlinks to devices or FIFOs: refused, never read without end
