@@ -164,9 +164,14 @@ Opened open_checked(const fs::path& path, Rejection& seen) {
     }
     throw PluginError(where + ": cannot be loaded: " + reason);
   }
+  // The entry symbol is an alias: a variable holding the entry function's address. It is read as
+  // that variable, so a null one is refused before it is called (get_alias would bind a reference
+  // to it).
   PluginEntryFn entry = nullptr;
   try {
-    entry = lib->get_alias<const PluginInfo*()>(kEntrySymbol);
+    const void* const address = lib->get<const void*>(kEntrySymbol);
+    static_assert(sizeof(address) == sizeof(entry), "function and object pointers differ in size");
+    std::memcpy(&entry, &address, sizeof(entry));
   } catch (const std::exception& e) {
     throw PluginError(where + ": cannot resolve '" + kEntrySymbol + "': " + e.what());
   }
