@@ -7,6 +7,8 @@
 // stopped by SIGINT / SIGTERM.
 #include "progress.hpp"
 #include "run_guard.hpp"
+#include "runtime/components.hpp"
+#include "runtime/csv.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
 #include "runtime/replay.hpp"
@@ -18,9 +20,14 @@
 
 #include <boost/program_options.hpp>
 
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
 #include <unistd.h>
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <iostream>
 #include <map>
 
@@ -39,7 +46,9 @@ struct Cli {
   std::vector<std::string> plugin_paths;
   std::string output, resume, describe, replay, svg, backend;
   long long cell = -1;
-  std::string seed;  // empty: from the experiment
+  bool cell_given = false;
+  std::string seed;
+  bool seed_given = false;  // else the experiment's
   int workers = 0;
   int stop_after_loop = -1;
   bool quiet = false, list = false, version = false;
@@ -71,9 +80,22 @@ std::vector<std::string> split_path_list(const char* text) {
 // runs from it). Shadowed component names are reported on stderr.
 void setup_registry(Registry& reg, const Cli& cli, const std::vector<std::string>& from_file,
                     const std::vector<std::string>& recorded = {}) {
+  // A directory the user names that is not there is a typo or a stale path: --plugin-path is an
+  // error (check_options), the others are said once.
+  auto warn_missing = [&](const std::string& dir, const std::string& from) {
+    std::error_code ec;
+    if (!cli.quiet && !fs::is_directory(dir, ec))
+      std::fprintf(stderr, "qdrun: warning: plugin directory %s (%s) does not exist\n", dir.c_str(), from.c_str());
+  };
   for (const auto& p : cli.plugin_paths) reg.add_search_dir(p);
-  for (const auto& p : split_path_list(std::getenv("QD_PLUGIN_PATH"))) reg.add_search_dir(p);
-  for (const auto& p : from_file) reg.add_search_dir(p);
+  for (const auto& p : split_path_list(std::getenv("QD_PLUGIN_PATH"))) {
+    warn_missing(p, "QD_PLUGIN_PATH");
+    reg.add_search_dir(p);
+  }
+  for (const auto& p : from_file) {
+    warn_missing(p, "[plugins] path");
+    reg.add_search_dir(p);
+  }
   for (const auto& p : recorded) reg.add_search_dir(p);
   reg.add_search_dir(installed_plugin_dir(), DirOrigin::kOwn);
   reg.add_search_dir(build_tree_plugin_dir(), DirOrigin::kOwn);
@@ -148,6 +170,19 @@ void print_notes(const Cli& cli, const Experiment& ex) {
   for (const auto& n : ex.notes) std::fprintf(stderr, "qdrun: note: %s\n", n.c_str());
 }
 
+// A run continues (or is replayed) with the plugins it was made with: when the library it used is
+// gone and another one provides the same component name, that is an error naming both, not a
+// silent switch.
+void check_same_plugins(const Cli& cli, const Run& run) {
+  std::vector<std::string> notes;
+  const std::string changed = changed_plugins(run.directory(), run.experiment(), &notes);
+  if (!changed.empty())
+    throw InputError(run.directory().string() + ": cannot use the plugins this run was made with: " + changed +
+                     "; restore the library or add its directory with --plugin-path");
+  if (!cli.quiet)
+    for (const auto& n : notes) std::fprintf(stderr, "qdrun: note: %s\n", n.c_str());
+}
+
 int run_one(const Cli& cli, const std::string& command_line) {
   Document doc;
   RunOptions opt;
@@ -156,19 +191,18 @@ int run_one(const Cli& cli, const std::string& command_line) {
     if (!fs::exists(cfg)) throw InputError(cli.resume + ": not a run directory (no config.toml)");
     doc = Document::read(cfg);
     for (const auto& s : cli.sets) doc.apply_override(s);  // checked against the checkpoint's config
-    if (!cli.seed.empty() || !cli.output.empty())
-      throw InputError("--seed and --output cannot be combined with --resume");
+    if (cli.seed_given || !cli.output.empty()) throw InputError("--seed and --output cannot be combined with --resume");
     if (!cli.backend.empty())
-      doc.apply_override("evaluation.backend=\"" + cli.backend + "\"", "--backend " + cli.backend);
+      doc.apply_override("evaluation.backend=" + toml_string(cli.backend), "--backend " + cli.backend);
     opt.directory = cli.resume;
   } else {
     doc = Document::read(cli.experiments.front());
     for (const auto& s : cli.sets) doc.apply_override(s);
     // Through the experiment's schema, as any key: the same ranges, values and messages.
-    if (!cli.seed.empty()) doc.apply_override("experiment.seed=" + cli.seed, "--seed " + cli.seed);
+    if (cli.seed_given) doc.apply_override("experiment.seed=" + cli.seed, "--seed " + cli.seed);
     if (!cli.backend.empty())
-      doc.apply_override("evaluation.backend=\"" + cli.backend + "\"", "--backend " + cli.backend);
-    if (!cli.output.empty()) doc.apply_override("output.dir=\"" + cli.output + "\"");
+      doc.apply_override("evaluation.backend=" + toml_string(cli.backend), "--backend " + cli.backend);
+    if (!cli.output.empty()) doc.apply_override("output.dir=" + toml_string(cli.output), "--output " + cli.output);
   }
   Registry reg;
   setup_registry(reg, cli, doc.plugin_paths(), doc.recorded_search_path());
@@ -197,18 +231,28 @@ int run_one(const Cli& cli, const std::string& command_line) {
     }
     return kExitOk;
   }
+  opt.on_start = [] { app::own_run_directory(); };
   const auto owned = build([&] { return std::make_unique<Run>(std::move(ex), reg, std::move(opt)); });
   Run& run = *owned;
-  if (!cli.resume.empty())
-    run.open_for_resume();
-  else
-    run.create_directory();
-  // Under mpirun, mpirun owns SIGINT and SIGTERM: it ends every rank, and the MPI backend reports
-  // it. Fatal signals and exit() in this process are reported in every case.
+  // Guarded before the directory is taken: a stop signal meanwhile ends qdrun with one line, and
+  // once the run owns the directory its status says where. Under mpirun, mpirun owns SIGINT and
+  // SIGTERM: it ends every rank, and the MPI backend reports it. Fatal signals and exit() in this
+  // process are reported in every case.
   app::guard_run(run.directory(), terminal && !cli.quiet, mpi_size() <= 1);
   struct EndOfRun {
     ~EndOfRun() { app::end_of_run(); }
   } end_of_run;
+  if (!cli.resume.empty()) {
+    check_same_plugins(cli, run);
+    run.open_for_resume();
+  } else {
+    run.create_directory();
+  }
+  if (run.restarted() && !cli.quiet)
+    std::fprintf(stderr,
+                 "qdrun: note: %s held the start of this run, which stopped before its first checkpoint (nothing "
+                 "to keep): started again from loop 0\n",
+                 run.directory().c_str());
   try {
     const bool finished = run.run();
     printer.finish();
@@ -221,11 +265,12 @@ int run_one(const Cli& cli, const std::string& command_line) {
     const std::string dir = run.directory().string();
     const std::string next = CheckpointStore::exists(run.directory())
                                  ? "the last checkpoint is intact: fix the cause and qdrun --resume " + dir
-                                 : "no checkpoint was written yet: fix the cause, delete " + dir + " and start again";
-    std::FILE* f = std::fopen((run.directory() / "status").c_str(), "w");
-    if (f) {
-      std::fprintf(f, "failed: %s (%s)\n", e.what(), next.c_str());
-      std::fclose(f);
+                                 : "no checkpoint was written yet: fix the cause and start again (qdrun --resume " +
+                                       dir + " starts it from loop 0)";
+    try {
+      write_file_atomic(run.directory() / "status", "failed: " + std::string(e.what()) + " (" + next + ")\n");
+    } catch (const std::exception&) {
+      // The error itself is what the user must see; the status keeps "running".
     }
     // A plugin fault during the run is exit 3 like a dead worker (setup faults were exit 2).
     if (dynamic_cast<const WorkerFailure*>(&e) || dynamic_cast<const PluginError*>(&e))
@@ -239,14 +284,43 @@ int run_one(const Cli& cli, const std::string& command_line) {
 int replay_all(const Cli& cli);
 
 // Builds the run of an existing run directory from its own config.toml (for --replay, --latents).
-std::unique_ptr<Run> open_run_directory(const Cli& cli, const fs::path& dir, Registry& reg, int workers) {
+void require_run_directory(const fs::path& dir) {
   if (!fs::exists(dir / "config.toml")) throw InputError(dir.string() + ": not a run directory (no config.toml)");
+}
+
+std::unique_ptr<Run> open_run_directory(const Cli& cli, const fs::path& dir, Registry& reg, int workers) {
+  require_run_directory(dir);
   Document doc = Document::read(dir / "config.toml");
   setup_registry(reg, cli, doc.plugin_paths(), doc.recorded_search_path());
   RunOptions opt;
   opt.directory = dir.string();
   opt.workers = workers;
-  return with_plugin_hint(dir, reg, [&] { return std::make_unique<Run>(resolve(doc, reg), reg, std::move(opt)); });
+  auto run = with_plugin_hint(dir, reg, [&] { return std::make_unique<Run>(resolve(doc, reg), reg, std::move(opt)); });
+  check_same_plugins(cli, *run);
+  return run;
+}
+
+// What --replay and --latents write goes beside a run, never over one of its own files (the run
+// could no longer be resumed): in the run directory only their own outputs or new names.
+void check_output_beside_run(const fs::path& out, const fs::path& dir, const std::string& option) {
+  require_run_directory(dir);
+  std::error_code ec;
+  const fs::path parent = fs::weakly_canonical(fs::absolute(out, ec).parent_path(), ec);
+  if (!fs::is_directory(parent, ec))
+    throw InputError(option + " " + out.string() + ": the directory " + parent.string() + " does not exist");
+  const fs::path run = fs::weakly_canonical(fs::absolute(dir, ec), ec);
+  if (!fs::equivalent(parent, run, ec) && !fs::equivalent(parent, run / "archive", ec)) return;
+  const std::string name = out.filename().string();
+  const bool replay_output =
+      name == "traces.csv" || name == "latents.csv" || (name.rfind("replay-", 0) == 0 && out.extension() == ".svg");
+  bool run_file = fs::equivalent(parent, run / "archive", ec) || name.rfind("provenance", 0) == 0 ||
+                  name.rfind("archive-state-", 0) == 0 || name.rfind("checkpoint.bin", 0) == 0;
+  for (const char* f : {"config.toml", "grid.toml", "metrics.csv", "training.csv", "losses.csv", "pca.csv",
+                        "archive.csv", "dataset.bin", "status", "lock", "qdrun.log", "fault-offspring.csv"})
+    run_file = run_file || name == f;
+  if (run_file || (!replay_output && exists_nofollow(out)))
+    throw InputError(option + " " + out.string() + ": that is a file of the run " + dir.string() +
+                     " itself; write the output elsewhere (replay and latents never change a run)");
 }
 
 // Replays run every episode in a fresh world (RolloutBatch::world = -1).
@@ -261,11 +335,14 @@ void note_fresh_worlds(const Run& run) {
 
 int replay(const Cli& cli) {
   if (cli.all) return replay_all(cli);
-  if (cli.cell < 0) throw InputError("--replay needs --cell N (an index from archive.csv)");
+  if (!cli.cell_given) throw InputError("--replay needs --cell N (an index from archive.csv)");
+  if (cli.cell < 0)
+    throw InputError("--cell " + std::to_string(cli.cell) + ": a cell index is >= 0 (column 'index' of archive.csv)");
   const fs::path dir = cli.replay;
+  const fs::path svg = cli.svg.empty() ? dir / ("replay-cell-" + std::to_string(cli.cell) + ".svg") : fs::path(cli.svg);
+  check_output_beside_run(svg, dir, "--svg");
   Registry reg;
   const std::unique_ptr<Run> run = open_run_directory(cli, dir, reg, 1);
-  const fs::path svg = cli.svg.empty() ? dir / ("replay-cell-" + std::to_string(cli.cell) + ".svg") : fs::path(cli.svg);
   const Trace t = replay_elite(*run, cli.cell, svg);
   std::int64_t cell = -1;
   const Descriptor& descriptor = *run->components().descriptor;
@@ -280,11 +357,12 @@ int replay(const Cli& cli) {
 
 // qdrun --replay RUN_DIR --all [--traces FILE.csv]: every elite's trajectory, for qdplot.
 int replay_all(const Cli& cli) {
-  if (cli.cell >= 0 || !cli.svg.empty()) throw InputError("--replay --all takes no --cell or --svg (see --traces)");
+  if (cli.cell_given || !cli.svg.empty()) throw InputError("--replay --all takes no --cell or --svg (see --traces)");
   const fs::path dir = cli.replay;
+  const fs::path csv = cli.traces.empty() ? dir / "traces.csv" : fs::path(cli.traces);
+  check_output_beside_run(csv, dir, "--traces");
   Registry reg;
   const std::unique_ptr<Run> run = open_run_directory(cli, dir, reg, cli.workers);
-  const fs::path csv = cli.traces.empty() ? dir / "traces.csv" : fs::path(cli.traces);
   const ReplayAllResult r = replay_all(*run, run->workers(), csv);
   std::printf("replayed %zu elites, %zu land in their stored cell\nwrote %s\n", r.elites, r.as_stored, csv.c_str());
   note_fresh_worlds(*run);
@@ -296,13 +374,38 @@ int replay_all(const Cli& cli) {
 // unless FILE is there.
 int latents(const Cli& cli) {
   const fs::path dir = cli.latents;
+  const fs::path csv = cli.output.empty() ? dir / "latents.csv" : fs::path(cli.output);
+  check_output_beside_run(csv, dir, "--output");
   Registry reg;
   const std::unique_ptr<Run> run = open_run_directory(cli, dir, reg, 1);
   run->open_for_inspection();
-  const fs::path csv = cli.output.empty() ? dir / "latents.csv" : fs::path(cli.output);
   write_latents(*run, csv);
   std::printf("wrote the latent codes of %zu dataset entries to %s\n", run->dataset().size(), csv.c_str());
   return kExitOk;
+}
+
+// Values the options' types accept but qdrun cannot use are refused at once, never replaced by a
+// default without a word (--seed "", --evaluations -5, --stop-after-loop -1, -o "").
+void check_options(const Cli& cli, const po::variables_map& vm) {
+  for (const auto& [name, value] : vm) {
+    const auto* text = boost::any_cast<std::string>(&value.value());
+    if (text && text->empty()) throw InputError("--" + name + " needs a value, and got an empty one");
+  }
+  if (vm.count("evaluations") && cli.evaluations < 1)
+    throw InputError("--evaluations " + std::to_string(cli.evaluations) + ": a budget is at least 1 evaluation");
+  if (vm.count("stop-after-loop") && cli.stop_after_loop < 0)
+    throw InputError("--stop-after-loop " + std::to_string(cli.stop_after_loop) + ": loops are numbered from 0");
+  // As [evaluation] workers: more would only exhaust the process or thread limit.
+  if (cli.workers < 0 || cli.workers > 4096)
+    throw InputError("--workers " + std::to_string(cli.workers) + " is out of range [0, 4096] (0: all cores)");
+  if (cli.jobs < 0 || cli.jobs > 4096)
+    throw InputError("--jobs " + std::to_string(cli.jobs) + " is out of range [0, 4096] (0: all cores)");
+  for (const auto& p : cli.plugin_paths) {
+    std::error_code ec;
+    if (p.empty()) throw InputError("--plugin-path needs a directory, and got an empty one");
+    if (!fs::is_directory(p, ec))
+      throw InputError("--plugin-path " + p + ": " + (fs::exists(p, ec) ? "not a directory" : "no such directory"));
+  }
 }
 
 bool sweep_requested(const Cli& cli) {
@@ -311,7 +414,7 @@ bool sweep_requested(const Cli& cli) {
 }
 
 int sweep(const Cli& cli) {
-  if (!cli.resume.empty() || !cli.seed.empty() || cli.stop_after_loop >= 0)
+  if (!cli.resume.empty() || cli.seed_given || cli.stop_after_loop >= 0)
     throw InputError("a sweep (several files, --seeds or --jobs) takes no --resume, --seed or --stop-after-loop");
   app::SweepOptions o;
   o.experiments = cli.experiments;
@@ -379,6 +482,9 @@ int qdrun_main(int argc, char** argv) {
     po::variables_map vm;
     po::store(po::command_line_parser(argc, argv).options(all).positional(pos).run(), vm);
     po::notify(vm);
+    cli.seed_given = vm.count("seed") > 0;
+    cli.cell_given = vm.count("cell") > 0;
+    check_options(cli, vm);
     // Under mpirun only rank 0 answers questions (help, list, describe, replay); the others wait.
     const bool runs = !vm.count("help") && !cli.version && !cli.list && cli.describe.empty() && cli.replay.empty() &&
                       cli.latents.empty();
@@ -409,7 +515,6 @@ int qdrun_main(int argc, char** argv) {
     if (!cli.replay.empty()) return replay(cli);
     if (!cli.latents.empty()) return latents(cli);
     if (sweep_requested(cli)) return sweep(cli);
-    if (cli.workers < 0) throw InputError("--workers must be >= 0");
     if (cli.resume.empty() && cli.experiments.size() != 1)
       throw InputError(cli.experiments.empty() ? "no experiment file given (qdrun EXPERIMENT.toml; see --help)"
                                                : "give one experiment file (or --resume RUN_DIR)");
@@ -442,9 +547,51 @@ int qdrun_main(int argc, char** argv) {
   }
 }
 
+// Standard descriptors that a launcher closed (qdrun FILE 2>&-) would be taken by the next file or
+// socket qdrun opens, and progress text would land in it (the lock file, metrics.csv, a worker's
+// socket). /dev/null takes their place before anything else is opened.
+bool make_standard_descriptors_safe() {
+  for (int fd = STDIN_FILENO; fd <= STDERR_FILENO; ++fd) {
+    if (::fcntl(fd, F_GETFD) != -1 || errno != EBADF) continue;
+    const int null = ::open("/dev/null", fd == STDIN_FILENO ? O_RDONLY : O_WRONLY);
+    if (null < 0) return false;
+    if (null != fd) {  // cannot happen (the lowest free descriptor is fd), but never leave it open
+      ::dup2(null, fd);
+      ::close(null);
+    }
+  }
+  return true;
+}
+
+// What qdrun printed on stdout (a listing, a description, a sweep's plan) must have arrived: a
+// full disk or a closed pipe there is a failure, not success.
+int check_standard_output(int code) {
+  errno = 0;
+  const bool flushed = std::fflush(stdout) == 0;
+  int e = errno;
+  if (flushed && !std::ferror(stdout)) return code;
+  // An earlier write failed; a pipe whose reader went away still says so.
+  if (pollfd p{STDOUT_FILENO, POLLOUT, 0}; e == 0 && ::poll(&p, 1, 0) == 1 && (p.revents & POLLERR)) e = EPIPE;
+  std::fprintf(stderr, "qdrun: system error: cannot write to standard output%s%s: what qdrun printed there is lost\n",
+               e ? ": " : "", e ? std::strerror(e) : "");
+  return code == kExitOk ? kExitSystem : code;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (!make_standard_descriptors_safe()) return kExitSystem;  // cannot even open /dev/null: nothing is safe
+  // A file size limit (ulimit -f) is a write error like a full disk (exit 4 naming the file), not
+  // a silent kill by SIGXFSZ.
+  ::signal(SIGXFSZ, SIG_IGN);
+  // What a launcher may leave behind that qdrun cannot work with: SIGCHLD ignored (children would
+  // be reaped by the kernel, and qdrun could not tell how its worker processes, plugin probes and
+  // sweep runs ended), or a crash signal blocked (a fault would end qdrun without its report).
+  ::signal(SIGCHLD, SIG_DFL);
+  sigset_t crashes;
+  sigemptyset(&crashes);
+  for (const int sig : {SIGCHLD, SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGSYS, SIGTRAP}) sigaddset(&crashes, sig);
+  ::sigprocmask(SIG_UNBLOCK, &crashes, nullptr);
   try {
     mpi_start(&argc, &argv);
   } catch (const std::exception& e) {
@@ -484,7 +631,7 @@ int main(int argc, char** argv) {
     mpi_stop();
     return code;
   }
-  const int code = qdrun_main(argc, argv);
+  const int code = check_standard_output(qdrun_main(argc, argv));
   if (code != kExitOk && mpi_size() > 1 && !mpi_workers_released()) {
     std::fflush(nullptr);
     std::_Exit(code);  // see above: mpirun ends the job, the worker ranks included

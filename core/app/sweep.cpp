@@ -3,6 +3,7 @@
 #include "runtime/checkpoint.hpp"
 #include "runtime/components.hpp"
 #include "runtime/cost_estimate.hpp"
+#include "runtime/csv.hpp"
 #include "runtime/evaluator.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/run.hpp"
@@ -17,6 +18,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
@@ -36,24 +38,19 @@ using runtime::Registry;
 
 namespace {
 
-std::string toml_quote(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') out += '\\';
-    out += c;
-  }
-  return out + "\"";
-}
+using runtime::toml_string;
 
+// A run directory's file as text ("" when missing or unreadable: for the sweep's own lines).
 std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+  try {
+    return runtime::read_run_file(p, std::uint64_t{1} << 30);
+  } catch (const std::exception&) {
+    return "";
+  }
 }
 
 std::string last_line(const fs::path& p) {
-  std::ifstream in(p);
+  std::istringstream in(read_text(p));
   std::string line, last;
   while (std::getline(in, line))
     if (!line.empty()) last = line;
@@ -162,14 +159,14 @@ Document read_run_document(const SweepOptions& o, const std::string& file, const
   Document doc = Document::read(file);
   for (const auto& s : overrides) doc.apply_override(s);
   if (seed) doc.apply_override("experiment.seed=" + std::to_string(*seed));
-  if (!o.output.empty()) doc.apply_override("output.dir=" + toml_quote(o.output));
+  if (!o.output.empty()) doc.apply_override("output.dir=" + toml_string(o.output));
   return doc;
 }
 
 // Loops metrics.csv shows complete (loop 0's single row, or a loop's last iteration): where a
 // resumed run will start, give or take the checkpoint it returns to.
 int completed_loops(const fs::path& metrics, int iterations) {
-  std::ifstream in(metrics);
+  std::istringstream in(read_text(metrics));
   std::string line;
   int done = 0;
   std::getline(in, line);  // header: loop,iteration,...
@@ -215,24 +212,36 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
   if (!o.output.empty()) p.child.insert(p.child.end(), {"--output", o.output});
   for (const auto& s : overrides) p.child.insert(p.child.end(), {"--set", s});
 
-  std::error_code ec;
   const std::string holder = runtime::RunDirectory::holder(p.dir);
   if (!holder.empty()) throw InputError(p.dir.string() + " is in use by qdrun " + holder + "; wait for it or stop it");
-  const bool has_config = fs::exists(p.dir / "config.toml", ec);
+  // What the run will read and append to is checked now, before any run starts: a FIFO there
+  // would block it, a symlink lead out of the directory.
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(p.dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name == "qdrun.log" || name == "status" || name == "config.toml" || name == "checkpoint.bin" ||
+        name == "dataset.bin" || name == "metrics.csv" || name == "training.csv" ||
+        name.rfind("archive-state-", 0) == 0)
+      runtime::require_regular_or_absent(e.path());
+  }
   const bool has_checkpoint = runtime::CheckpointStore::exists(p.dir);
-  const bool has_archive = fs::exists(p.dir / "archive.csv", ec);
-  const std::string status = read_text(p.dir / "status");
-  if (!has_config && !has_checkpoint && !has_archive) {
+  const bool has_archive = runtime::exists_nofollow(p.dir / "archive.csv");
+  const std::string status = runtime::RunDirectory::read_status(p.dir);
+  std::string found;
+  const runtime::Leftover leftover =
+      has_checkpoint ? runtime::Leftover::kUnfinishedStart : runtime::RunDirectory::leftover(p.dir, &found);
+  if (leftover == runtime::Leftover::kNone) {
     p.action = Action::kFresh;
     p.why = "fresh";
     return p;
   }
-  if (!has_checkpoint && (has_archive || status.rfind("complete", 0) == 0 || !has_config))
+  if (leftover == runtime::Leftover::kResults)
     // Anything without a checkpoint but a run that died in loop 0 (a finished run copied without
-    // its *.bin files, a directory of another kind) holds results a restart would destroy.
-    throw InputError(p.dir.string() +
-                     " holds results but no checkpoint (copied without its *.bin files?); "
-                     "the sweep will not touch it: move it away or choose another --output");
+    // its *.bin files, checkpoint.bin deleted, a directory of another kind) holds results a
+    // restart would destroy.
+    throw InputError(p.dir.string() + " holds results but no checkpoint (" + found +
+                     "; copied without its *.bin files?); the sweep will not touch it: move it away or choose "
+                     "another --output");
   // The directory holds this run (only the budget and output keys may differ), or the start of it.
   Document old = Document::read(p.dir / "config.toml");
   const Registry& old_reg = regs.get(old.plugin_paths());
@@ -240,7 +249,7 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
   old.apply_override("experiment.loops=" + std::to_string(now.settings.loops));
   old.apply_override("evaluation.workers=" + std::to_string(now.settings.workers));
   old.apply_override("output.snapshot_every=" + std::to_string(now.settings.snapshot_every));
-  old.apply_override("output.dir=" + toml_quote(now.settings.output_dir));
+  old.apply_override("output.dir=" + toml_string(now.settings.output_dir));
   const Checked then = check(old, old_reg);
   if (then.resolved_toml != now.resolved_toml)
     throw InputError(p.dir.string() + " holds a run of another configuration than " + file + " (" +
@@ -269,17 +278,43 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
   return p;
 }
 
-// Removes what a run that died in loop 0 wrote, and nothing else (a user's notes stay).
-void remove_unfinished_start(const fs::path& dir) {
-  std::error_code ec;
-  for (const char* name : {"config.toml", "provenance.toml", "status", "grid.toml", "metrics.csv", "training.csv",
-                           "losses.csv", "pca.csv", "dataset.bin", "checkpoint.bin.tmp"})
-    fs::remove(dir / name, ec);
-  for (const auto& e : fs::directory_iterator(dir, ec)) {
-    const std::string name = e.path().filename().string();
-    if (name.rfind("archive-state-", 0) == 0) fs::remove(e.path(), ec);
+// A sweep stopped by SIGINT, SIGTERM or SIGHUP passes the signal on to its runs, so each stops as
+// qdrun does alone (its status says where, --resume continues), waits for them and says so; no new
+// run starts. Runs are tracked where the handler can read them (async-signal-safe). SIGPIPE is
+// ignored.
+constexpr std::size_t kMaxChildren = 4096;  // --jobs at most
+std::atomic<pid_t> g_children[kMaxChildren];
+volatile std::sig_atomic_t g_stop_signal = 0;
+
+void track_child(pid_t pid, bool running) {
+  for (auto& c : g_children) {
+    pid_t expected = running ? 0 : pid;
+    if (c.compare_exchange_strong(expected, running ? pid : 0)) return;
   }
 }
+
+void on_sweep_stop(int sig) {
+  g_stop_signal = sig;
+  for (const auto& c : g_children)
+    if (const pid_t pid = c.load(); pid > 0) ::kill(pid, sig);
+}
+
+struct StopForwarding {
+  StopForwarding() {
+    // A reader of the sweep's lines that goes away (qdrun ... | head) takes the lines, not the runs:
+    // qdrun reports the lost output when the sweep ends (exit 4).
+    if (struct sigaction now; ::sigaction(SIGPIPE, nullptr, &now) == 0 && now.sa_handler == SIG_DFL)
+      ::signal(SIGPIPE, SIG_IGN);
+    struct sigaction sa;
+    std::memset(&sa, 0, sizeof(sa));
+    sa.sa_handler = on_sweep_stop;
+    sigemptyset(&sa.sa_mask);
+    for (const int sig : {SIGINT, SIGTERM, SIGHUP}) {
+      struct sigaction now;
+      if (::sigaction(sig, nullptr, &now) == 0 && now.sa_handler == SIG_DFL) ::sigaction(sig, &sa, nullptr);
+    }
+  }
+};
 
 double now_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -292,23 +327,28 @@ pid_t start_child(const std::string& exe, const std::vector<std::string>& args, 
   argv.push_back(const_cast<char*>(exe.c_str()));
   for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
+  // Opened here, with the checks of every run directory file (a FIFO there would block the child,
+  // a symlink or hard link send its output elsewhere): an error names it before anything starts.
+  const int fd = runtime::open_for_update(log, O_APPEND, true);
   const pid_t parent = ::getpid();
   std::fflush(stdout);
   std::fflush(stderr);
   const pid_t pid = ::fork();
-  if (pid < 0) throw Error(std::string("fork failed: ") + std::strerror(errno));
+  if (pid < 0) {
+    ::close(fd);
+    throw SystemError(std::string("cannot start a run: fork failed: ") + std::strerror(errno));
+  }
   if (pid == 0) {
+    for (const int sig : {SIGINT, SIGTERM, SIGHUP}) ::signal(sig, SIG_DFL);  // not the sweep's forwarding
     ::prctl(PR_SET_PDEATHSIG, SIGKILL);
     if (::getppid() != parent) ::_exit(127);  // the sweep died before prctl took effect
-    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-    if (fd >= 0) {
-      ::dup2(fd, STDOUT_FILENO);
-      ::dup2(fd, STDERR_FILENO);
-    }
+    ::dup2(fd, STDOUT_FILENO);
+    ::dup2(fd, STDERR_FILENO);
     ::execv(exe.c_str(), argv.data());
     std::fprintf(stderr, "qdrun sweep: cannot execute %s: %s\n", exe.c_str(), std::strerror(errno));
     ::_exit(127);
   }
+  ::close(fd);
   return pid;
 }
 
@@ -365,12 +405,13 @@ struct MeasuredCost {
 };
 
 MeasuredCost measured_cost(const fs::path& dir, int iterations) {
-  std::ifstream metrics(dir / "metrics.csv");
+  std::istringstream metrics(read_text(dir / "metrics.csv"));
   const runtime::MeasuredRate rate = runtime::measured_rate(metrics, iterations);
   MeasuredCost out;
   if (rate.loop < 1) return out;
   try {
-    const toml::table provenance = toml::parse_file(runtime::session_provenance(dir, rate.loop).string());
+    const fs::path path = runtime::session_provenance(dir, rate.loop);
+    const toml::table provenance = toml::parse(read_text(path), path.string());
     out.workers = std::max<int>(1, provenance["workers"].value_or(1));
   } catch (const toml::parse_error&) {
     // Unreadable provenance: one worker, the sweep's default.
@@ -554,13 +595,14 @@ int run_sweep(const SweepOptions& o,
   // two concurrent Walker fits 3 times slower (docs/performance-history.md). Results do not depend on it.
   if (std::getenv("OMP_THREAD_LIMIT") == nullptr) ::setenv("OMP_THREAD_LIMIT", std::to_string(workers).c_str(), 1);
   std::map<pid_t, std::pair<std::size_t, double>> running;  // pid -> (run, start time)
-  std::size_t next = 0;
+  const StopForwarding stop_forwarding;
+  std::size_t next = 0, stopped = 0;
   while (next < pending.size() || !running.empty()) {
-    while (next < pending.size() && static_cast<int>(running.size()) < concurrent) {
+    while (next < pending.size() && static_cast<int>(running.size()) < concurrent && !g_stop_signal) {
       const std::size_t i = pending[next++];
       PlannedRun& r = runs[i];
       std::error_code ec;
-      if (r.action == Action::kRestart) remove_unfinished_start(r.dir);
+      if (r.action == Action::kRestart) runtime::RunDirectory::remove_unfinished_start(r.dir);
       fs::create_directories(r.dir, ec);
       if (ec) throw InputError("cannot create the run directory " + r.dir.string() + ": " + ec.message());
       std::vector<std::string> args = r.child;
@@ -568,6 +610,7 @@ int run_sweep(const SweepOptions& o,
       for (const auto& p : o.plugin_paths) args.insert(args.end(), {"--plugin-path", p});
       const pid_t pid = start_child(exe, args, r.dir / "qdrun.log");
       running[pid] = {i, now_seconds()};
+      track_child(pid, true);
       std::printf("%s start  %s (%s)\n", tag(i).c_str(), r.label.c_str(), r.why.c_str());
       std::fflush(stdout);
     }
@@ -579,6 +622,7 @@ int run_sweep(const SweepOptions& o,
     }
     const auto it = running.find(pid);
     if (it == running.end()) continue;
+    track_child(pid, false);
     const auto [i, t0] = it->second;
     running.erase(it);
     const PlannedRun& r = runs[i];
@@ -587,6 +631,11 @@ int run_sweep(const SweepOptions& o,
     if (WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 0 && status.rfind("complete", 0) == 0) {
       ++finished;
       std::printf("%s done   %s in %.1f s\n", tag(i).c_str(), r.label.c_str(), seconds);
+    } else if (g_stop_signal && ((WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 128 + g_stop_signal) ||
+                                 (WIFSIGNALED(wstatus) && WTERMSIG(wstatus) == g_stop_signal))) {
+      ++stopped;
+      std::printf("%s stop   %s after %.1f s: %s\n", tag(i).c_str(), r.label.c_str(), seconds,
+                  status.substr(0, status.find('\n')).c_str());
     } else {
       failed.push_back(r.label);
       const std::string how = WIFEXITED(wstatus) ? "exit code " + std::to_string(WEXITSTATUS(wstatus))
@@ -595,6 +644,15 @@ int run_sweep(const SweepOptions& o,
                   last_line(r.dir / "qdrun.log").c_str(), (r.dir / "qdrun.log").c_str());
     }
     std::fflush(stdout);
+  }
+  if (g_stop_signal) {
+    std::printf(
+        "sweep: stopped by signal %d (%s): %zu runs finished, %zu stopped, %zu failed, %zu not started; run the same "
+        "command again to finish the sweep\n",
+        static_cast<int>(g_stop_signal), strsignal(g_stop_signal), finished, stopped, failed.size(),
+        pending.size() - next);
+    std::fflush(stdout);
+    return 128 + g_stop_signal;
   }
   std::printf("sweep: %zu runs: %zu finished, %zu skipped (already complete), %zu failed\n", runs.size(), finished,
               skipped, failed.size());

@@ -1,9 +1,46 @@
 #include <qd/errors.hpp>
 #include <qd/policy.hpp>
+#include <qd/testing/policy_watch.hpp>
 
+#include <atomic>
 #include <cmath>
+#include <map>
+#include <mutex>
+#include <thread>
 
 namespace qd {
+namespace {
+// qd::testing's watch of Policy::load (policy_watch.hpp).
+std::atomic<bool> g_watching{false};
+std::mutex g_watch_mutex;
+std::map<const Policy*, std::thread::id>& loaded_by() {
+  static std::map<const Policy*, std::thread::id> m;
+  return m;
+}
+bool g_two_threads = false;
+
+void note_load(const Policy* p) {
+  const std::lock_guard<std::mutex> lock(g_watch_mutex);
+  const auto [it, fresh] = loaded_by().emplace(p, std::this_thread::get_id());
+  if (!fresh && it->second != std::this_thread::get_id()) g_two_threads = true;
+}
+}  // namespace
+
+namespace testing {
+void watch_policy_loads(bool on) noexcept {
+  const std::lock_guard<std::mutex> lock(g_watch_mutex);
+  if (on) {
+    loaded_by().clear();
+    g_two_threads = false;
+  }
+  g_watching.store(on);
+}
+
+bool policy_loaded_on_two_threads() noexcept {
+  const std::lock_guard<std::mutex> lock(g_watch_mutex);
+  return g_two_threads;
+}
+}  // namespace testing
 
 PolicyShape::PolicyShape(int inputs, std::vector<int> hidden, int outputs) : hidden_(std::move(hidden)) {
   QD_CHECK(inputs > 0 && outputs > 0, "policy needs at least one input and one output");
@@ -28,6 +65,7 @@ Policy::Policy(const PolicyShape& shape) : shape_(shape) {
 }
 
 void Policy::load(const double* theta) {
+  if (g_watching.load(std::memory_order_relaxed)) note_load(this);
   for (int l = 0; l < shape_.layers(); ++l) {
     const int n_in = shape_.layer_inputs(l);
     const int n_out = shape_.layer_outputs(l);

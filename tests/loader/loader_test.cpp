@@ -7,8 +7,10 @@
 
 #include <boost/dll/shared_library.hpp>
 
+#include <dlfcn.h>
 #include <algorithm>
 #include <string>
+#include <vector>
 
 using namespace qd;
 using namespace qd::runtime;
@@ -291,4 +293,42 @@ TEST(Loader, ObjectsKeepTheirLibraryLoadedAfterTheRegistryIsGone) {
   EXPECT_EQ(live(), 1);
   m.reset();
   EXPECT_EQ(live(), 0);
+}
+
+// Issue 32: a library whose constructor exits or crashes, whose entry symbol is null or whose
+// component list points nowhere is left out by name, read in a probe process; the others stay, and
+// none is loaded into this process until a component of it is constructed.
+TEST(Discovery, HostileLibrariesAreRejectedByNameAndNothingIsLoadedUntilUsed) {
+  Registry reg;
+  reg.add_search_dir(fs::path(QD_TEST_PLUGIN_ROOT) / "hostile");
+  reg.discover();
+  std::vector<std::string> reasons;
+  for (const auto& r : reg.rejected()) reasons.push_back(r.reason);
+  ASSERT_EQ(reasons.size(), 4u) << ::testing::PrintToString(reasons);
+  auto rejected = [&](const std::string& file, const std::string& why) {
+    return std::any_of(reasons.begin(), reasons.end(), [&](const std::string& r) {
+      return r.find(file) != std::string::npos && r.find(why) != std::string::npos;
+    });
+  };
+  // (Under the sanitizers a crash ends in their report and abort(), an exit in a leak check.)
+  EXPECT_TRUE(rejected("qd_ctor_exit.so", "ended the process while being loaded (exit("));
+  EXPECT_TRUE(rejected("qd_ctor_segv.so", "crashed while being loaded (signal "));
+  EXPECT_TRUE(rejected("qd_null_entry.so", "its entry symbol 'qd_plugin_entry_v1' is null"));
+  EXPECT_TRUE(rejected("qd_bad_components.so", "crashed while being loaded"));
+  const fs::path misspelt = fs::path(QD_TEST_PLUGIN_ROOT) / "hostile" / "qd_misspelt.so";
+  const ComponentEntry& e = reg.require("misspelt", Kind::kMutator);
+  ASSERT_EQ(e.info->param_count, 1u);
+  EXPECT_STREQ(e.info->params[0].key, "sigma");  // read in the probe process
+  EXPECT_EQ(::dlopen(misspelt.c_str(), RTLD_NOW | RTLD_NOLOAD), nullptr) << "loaded before it was used";
+  Config cfg("mutator");
+  cfg.set_float("sigma", 0.1);
+  try {
+    reg.create<Mutator>(e, cfg, BuildContext{});
+    FAIL() << "the misspelt mutator was constructed";
+  } catch (const ConfigError& err) {
+    EXPECT_EQ(err.key(), "sigmaa");
+  }
+  void* handle = ::dlopen(misspelt.c_str(), RTLD_NOW | RTLD_NOLOAD);
+  EXPECT_NE(handle, nullptr) << "constructing its component loads the library";
+  if (handle) ::dlclose(handle);
 }

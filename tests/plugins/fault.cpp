@@ -52,16 +52,21 @@ constexpr qd::ParamSpec kEnvParams[] = {
     qd::param_int("fault_loop", "1", 0, 1e9, "loop of the faulty offspring"),
     qd::param_int("fault_iteration", "0", 0, 1e9, "iteration of the faulty offspring (0 in loop 0)"),
     qd::param_int("fault_offspring", "0", 0, 1e9, "index of the faulty offspring in its batch"),
+    qd::param_int("fault_count", "1", 1, 1e9,
+                  "offspring fault_offspring to fault_offspring + fault_count - 1 fault (several at once on the "
+                  "threads backend)"),
 };
 
 class FaultArm final : public qd::Environment {
  public:
   FaultArm(const qd::Config& c, const qd::BuildContext& b)
-      : steps_(static_cast<int>(c.get_int("steps"))),
-        fault_(faults_enabled() ? c.get_string("fault") : "none"),
-        target_(qd::Rng::derive_seed(b.seed, qd::Stream::kEpisode, static_cast<std::uint64_t>(c.get_int("fault_loop")),
-                                     static_cast<std::uint64_t>(c.get_int("fault_iteration")),
-                                     static_cast<std::uint64_t>(c.get_int("fault_offspring")))) {}
+      : steps_(static_cast<int>(c.get_int("steps"))), fault_(faults_enabled() ? c.get_string("fault") : "none") {
+    for (std::int64_t k = 0; k < c.get_int("fault_count"); ++k)
+      targets_.push_back(qd::Rng::derive_seed(b.seed, qd::Stream::kEpisode,
+                                              static_cast<std::uint64_t>(c.get_int("fault_loop")),
+                                              static_cast<std::uint64_t>(c.get_int("fault_iteration")),
+                                              static_cast<std::uint64_t>(c.get_int("fault_offspring") + k)));
+  }
 
   qd::EnvironmentInfo info() const override { return {kJoints + 2, kJoints, steps_, "fault-endpoint"}; }
 
@@ -92,7 +97,8 @@ class FaultArm final : public qd::Environment {
       }
       t.main.push(x, y);
       t.fitness = -0.1 * energy;
-      if (fault_ != "none" && batch.episode_seeds[i] == target_) inject(t);
+      if (fault_ != "none" && std::find(targets_.begin(), targets_.end(), batch.episode_seeds[i]) != targets_.end())
+        inject(t);
     }
   }
 
@@ -113,7 +119,7 @@ class FaultArm final : public qd::Environment {
 
   int steps_;
   std::string fault_;
-  std::uint64_t target_;
+  std::vector<std::uint64_t> targets_;  // episode seeds of the faulty offspring
 };
 
 constexpr qd::ParamSpec kDescParams[] = {qd::param_int("bins", "20", 1, 10000, "bins per axis over [-1, 1]")};

@@ -36,3 +36,14 @@ TEST(Crc32c, OneFlippedBitChangesIt) {
   bytes[2049] = static_cast<char>(bytes[2049] ^ 0x10);
   EXPECT_NE(qd::runtime::crc32c(bytes.data(), bytes.size()), before);
 }
+
+// A log's checksum is extended chunk by chunk as it grows (RunDirectory::log_sizes).
+TEST(Crc32c, ExtendingEqualsTheWhole) {
+  const std::string text = "loop,iteration,evaluations\n0,0,100\n1,0,120\n1,1,140\n";
+  for (std::size_t cut = 0; cut <= text.size(); ++cut) {
+    const std::uint32_t head = qd::runtime::crc32c(text.data(), cut);
+    EXPECT_EQ(qd::runtime::crc32c(text.data() + cut, text.size() - cut, head),
+              qd::runtime::crc32c(text.data(), text.size()))
+        << cut;
+  }
+}

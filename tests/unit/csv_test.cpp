@@ -5,12 +5,15 @@
 
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -97,4 +100,86 @@ TEST(AppendLog, AppendToFileWritesAtOnce) {
   append_to_file(path, "row\n");
   EXPECT_EQ(slurp(path), "old\nrow\n");
   fs::remove_all(path.parent_path());
+}
+
+// Issue 32: a run directory's files are regular files of its own, never written through a symlink,
+// never shared with another directory, never read without end.
+namespace {
+fs::path fresh_directory(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("qd_csv_test-" + std::to_string(::getpid()) + "-" + name);
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
+TEST(AtomicFile, NeverWritesThroughASymlinkLeftAsItsTemporaryFile) {
+  const fs::path d = fresh_directory("planted");
+  std::ofstream(d / "victim") << "victim\n";
+  fs::create_symlink(d / "victim", d / "status.tmp");
+  write_file_atomic(d / "status", "running\n");
+  EXPECT_EQ(slurp(d / "victim"), "victim\n");
+  EXPECT_EQ(slurp(d / "status"), "running\n");
+  fs::remove_all(d);
+}
+
+TEST(RunFiles, OpenForUpdateRefusesWhatIsNotARegularFile) {
+  const fs::path d = fresh_directory("kinds");
+  std::ofstream(d / "other.csv") << "x\n";
+  fs::create_symlink(d / "other.csv", d / "link.csv");
+  ASSERT_EQ(::mkfifo((d / "fifo.csv").c_str(), 0644), 0);
+  fs::create_directory(d / "dir.csv");
+  EXPECT_NE(
+      error_of([&] { open_for_update(d / "link.csv", O_APPEND, true); }).find("is a symbolic link, not a regular"),
+      std::string::npos);
+  EXPECT_NE(error_of([&] { open_for_update(d / "fifo.csv", O_APPEND, true); }).find("is a FIFO, not a regular file"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { open_for_update(d / "dir.csv", O_APPEND, true); }).find("is a directory"),
+            std::string::npos);
+  EXPECT_EQ(slurp(d / "other.csv"), "x\n");
+  fs::remove_all(d);
+}
+
+TEST(RunFiles, AHardLinkedLogIsMadePrivateBeforeItChanges) {
+  const fs::path d = fresh_directory("hardlink");
+  fs::create_directories(d / "copy");
+  std::ofstream(d / "metrics.csv") << "header\nrow 1\n";
+  fs::create_hard_link(d / "metrics.csv", d / "copy" / "metrics.csv");  // cp -al
+  AppendLog log(d / "copy" / "metrics.csv");
+  log.append("row 2 of the copy\n");
+  EXPECT_EQ(slurp(d / "metrics.csv"), "header\nrow 1\n");
+  EXPECT_EQ(slurp(d / "copy" / "metrics.csv"), "header\nrow 1\nrow 2 of the copy\n");
+  EXPECT_EQ(fs::hard_link_count(d / "metrics.csv"), 1u);
+  // A link made while the log is open is broken before the next row.
+  fs::create_hard_link(d / "copy" / "metrics.csv", d / "late.csv");
+  log.append("row 3\n");
+  EXPECT_EQ(slurp(d / "late.csv"), "header\nrow 1\nrow 2 of the copy\n");
+  EXPECT_EQ(slurp(d / "copy" / "metrics.csv"), "header\nrow 1\nrow 2 of the copy\nrow 3\n");
+  fs::remove_all(d);
+}
+
+TEST(RunFiles, ReadingRefusesFifosAndDevicesAtOnceAndBoundsTheSize) {
+  const fs::path d = fresh_directory("read");
+  ASSERT_EQ(::mkfifo((d / "checkpoint.bin").c_str(), 0644), 0);  // no writer: a plain open would block
+  EXPECT_NE(error_of([&] { read_run_file(d / "checkpoint.bin", 100); }).find("is a FIFO, not a regular file"),
+            std::string::npos);
+  fs::create_symlink("/dev/zero", d / "dataset.bin");
+  EXPECT_NE(error_of([&] { read_run_file_prefix(d / "dataset.bin", 100); }).find("is a symbolic link"),
+            std::string::npos);
+  std::ofstream(d / "status") << std::string(200, 'x');
+  EXPECT_NE(error_of([&] { read_run_file(d / "status", 100); }).find("larger (200 bytes) than its format allows (100)"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { read_run_file_prefix(d / "status", 300); }).find("is shorter than the checkpoint records"),
+            std::string::npos);
+  EXPECT_EQ(read_run_file_prefix(d / "status", 10), std::string(10, 'x'));
+  EXPECT_NE(error_of([&] { read_run_file(d / "missing", 100); }).find("is missing"), std::string::npos);
+  fs::remove_all(d);
 }

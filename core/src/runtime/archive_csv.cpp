@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <fstream>
 #include <numeric>
+#include <sstream>
 #include <string>
 
 namespace qd::runtime {
@@ -50,8 +51,14 @@ void write_archive_csv(const fs::path& path, const Archive& archive, bool parame
 }
 
 StoredElites read_archive_solutions(const fs::path& csv, std::size_t P) {
-  std::ifstream in(csv);
-  if (!in) throw InputError(csv.string() + ": no final archive (is the run complete?)");
+  if (!exists_nofollow(csv)) throw InputError(csv.string() + ": no final archive (is the run complete?)");
+  std::string text;
+  try {
+    text = read_run_file(csv, std::uint64_t{1} << 40);  // a regular file only (a FIFO never blocks)
+  } catch (const StateError& e) {
+    throw InputError(e.what());
+  }
+  std::istringstream in(std::move(text));
   std::string header, line;
   std::getline(in, header);
   std::vector<std::string> columns;

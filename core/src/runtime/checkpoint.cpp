@@ -26,9 +26,9 @@ namespace fs = std::filesystem;
 // With SSE4.2 (every x86-64-v2 CPU) the CPU's crc32 instruction: Boost's table-driven CRC runs at
 // about 0.4 GB/s, which cost 1-2 % of a Striker ps-uniform run (a checkpoint of megabytes every
 // 0.4 s); the instruction about 8.7 GB/s (docs/performance-history.md). Both give the same checksum.
-std::uint32_t crc32c(const char* bytes, std::size_t size) {
+std::uint32_t crc32c(const char* bytes, std::size_t size, std::uint32_t previous) {
 #if defined(__SSE4_2__)
-  std::uint64_t crc = 0xFFFFFFFFu;
+  std::uint64_t crc = previous ^ 0xFFFFFFFFu;
   for (; size >= 8; size -= 8, bytes += 8) {
     std::uint64_t word;
     std::memcpy(&word, bytes, 8);
@@ -38,14 +38,19 @@ std::uint32_t crc32c(const char* bytes, std::size_t size) {
   for (; size > 0; --size, ++bytes) crc32 = _mm_crc32_u8(crc32, static_cast<std::uint8_t>(*bytes));
   return crc32 ^ 0xFFFFFFFFu;
 #else
-  boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true> crc;
+  boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true> crc(previous ^ 0xFFFFFFFFu);
   crc.process_bytes(bytes, size);
   return crc.checksum();
 #endif
 }
 
 namespace {
-constexpr char kCheckpointMagic[8] = {'Q', 'D', 'C', 'K', 'P', 'T', '0', '3'};
+// Version 04 records the CRC-32C of each log next to its size; 03 (qdrun before it) is still read.
+constexpr char kCheckpointMagic[8] = {'Q', 'D', 'C', 'K', 'P', 'T', '0', '4'};
+constexpr char kCheckpointMagic03[8] = {'Q', 'D', 'C', 'K', 'P', 'T', '0', '3'};
+// The most a checkpoint can hold: its configuration and three state blobs of at most 1 GiB each
+// (state::read_string), counters and chunk lists.
+constexpr std::uint64_t kMaxCheckpointBytes = std::uint64_t{5} << 30;
 constexpr char kArchiveLogMagic[8] = {'Q', 'D', 'A', 'R', 'L', 'G', '0', '1'};
 constexpr char kDatasetMagic[8] = {'Q', 'D', 'D', 'S', 'E', 'T', '0', '1'};
 constexpr const char* kCheckpointFile = "checkpoint.bin";
@@ -107,8 +112,8 @@ CheckpointStore::~CheckpointStore() {
 }
 
 bool CheckpointStore::exists(const fs::path& dir) {
-  std::error_code ec;
-  return fs::exists(dir / kCheckpointFile, ec);
+  // A symlink counts (and is refused when read): never taken for a run without a checkpoint.
+  return exists_nofollow(dir / kCheckpointFile);
 }
 
 fs::path CheckpointStore::archive_log(std::uint64_t generation) const {
@@ -177,9 +182,10 @@ void CheckpointStore::save(const CheckpointCounters& counters, const std::string
   state::write<double>(o, counters.wall_seconds);
   state::write<double>(o, counters.train_seconds);
   state::write<std::uint32_t>(o, static_cast<std::uint32_t>(logs.size()));
-  for (const auto& [name, size] : logs) {
-    state::write_string(o, name);
-    state::write<std::uint64_t>(o, size);
+  for (const LogSize& log : logs) {
+    state::write_string(o, log.name);
+    state::write<std::uint64_t>(o, log.size);
+    state::write<std::uint32_t>(o, log.crc);
   }
   state::write<std::uint64_t>(o, archive_generation_);
   state::write<std::uint64_t>(o, archive.size());
@@ -240,8 +246,8 @@ void CheckpointStore::work() {
 void CheckpointStore::write(const Job& job) const {
   // Appended data first: a checkpoint that counts it must never be visible before it is durable.
   for (const Append& a : job.appends) {
-    Fd f{::open(a.path.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644)};
-    if (f.fd < 0) throw SystemError("cannot open " + a.path.string() + ": " + std::strerror(errno));
+    // Never through a symlink, and never into an inode a hard-linked copy of the run shares.
+    Fd f{open_for_update(a.path, 0, true)};
     if (::ftruncate(f.fd, static_cast<off_t>(a.offset)) != 0 ||
         ::lseek(f.fd, static_cast<off_t>(a.offset), SEEK_SET) < 0)
       throw SystemError("cannot truncate " + a.path.string() + ": " + std::strerror(errno));
@@ -259,11 +265,8 @@ namespace {
 // Reads an append-only file and checks every chunk against its recorded CRC-32C.
 std::string read_verified(const fs::path& path, const std::vector<CheckpointStore::Chunk>& chunks) {
   const std::uint64_t size = chunks.empty() ? 0 : chunks.back().end;
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw StateError(path.string() + " is missing");
-  std::string bytes(size, '\0');
-  if (!in.read(bytes.data(), static_cast<std::streamsize>(size)))
-    throw StateError(path.string() + " is shorter than the checkpoint records (" + std::to_string(size) + " bytes)");
+  // Only a regular file, and only the bytes the checkpoint vouches for.
+  const std::string bytes = read_run_file_prefix(path, size);
   std::uint64_t begin = 0;
   for (const auto& c : chunks) {
     if (c.end < begin || c.end > size)
@@ -337,12 +340,12 @@ void CheckpointStore::load_dataset(Dataset& dataset, std::uint64_t rows) {
 CheckpointStore::Loaded CheckpointStore::load(Archive& archive, Dataset& dataset, const Components& components,
                                               bool tidy) {
   const fs::path file = dir_ / kCheckpointFile;
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw StateError(file.string() + " is missing");
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string bytes = read_run_file(file, kMaxCheckpointBytes);
   std::uint32_t stored_crc = 0;
+  const bool v03 = bytes.size() >= sizeof(kCheckpointMagic03) &&
+                   std::equal(kCheckpointMagic03, kCheckpointMagic03 + sizeof(kCheckpointMagic03), bytes.data());
   if (bytes.size() < sizeof(kCheckpointMagic) + sizeof(stored_crc) ||
-      !std::equal(kCheckpointMagic, kCheckpointMagic + sizeof(kCheckpointMagic), bytes.data()))
+      (!v03 && !std::equal(kCheckpointMagic, kCheckpointMagic + sizeof(kCheckpointMagic), bytes.data())))
     throw StateError(file.string() + " is not a qdrun checkpoint of this version");
   std::memcpy(&stored_crc, bytes.data() + bytes.size() - sizeof(stored_crc), sizeof(stored_crc));
   bytes.resize(bytes.size() - sizeof(stored_crc));
@@ -358,14 +361,25 @@ CheckpointStore::Loaded CheckpointStore::load(Archive& archive, Dataset& dataset
   out.counters.train_seconds = state::read<double>(i);
   const auto nlogs = state::read<std::uint32_t>(i);
   for (std::uint32_t k = 0; k < nlogs; ++k) {
-    std::string name = state::read_string(i);
-    out.logs.emplace_back(std::move(name), state::read<std::uint64_t>(i));
+    LogSize log;
+    log.name = state::read_string(i);
+    log.size = state::read<std::uint64_t>(i);
+    log.crc = v03 ? 0 : state::read<std::uint32_t>(i);
+    log.checksummed = !v03;
+    // A recorded name is a plain file name of the run directory, never a path out of it.
+    if (log.name.empty() || log.name.find('/') != std::string::npos || log.name == "." || log.name == "..")
+      throw StateError(file.string() + " records a log named '" + log.name + "'");
+    out.logs.push_back(std::move(log));
   }
   archive_generation_ = state::read<std::uint64_t>(i);
   const auto archive_slots = state::read<std::uint64_t>(i);
   const auto dataset_rows = state::read<std::uint64_t>(i);
   for (auto* chunks : {&archive_chunks_, &dataset_chunks_}) {
-    chunks->resize(state::read<std::uint64_t>(i));
+    // Each chunk takes 12 bytes of the file: a count beyond what is left is damage, not a size to
+    // allocate.
+    const auto count = state::read<std::uint64_t>(i);
+    if (count > bytes.size() / 12) throw StateError(file.string() + " records an impossible number of chunks");
+    chunks->resize(count);
     for (Chunk& c : *chunks) {
       c.end = state::read<std::uint64_t>(i);
       c.crc = state::read<std::uint32_t>(i);

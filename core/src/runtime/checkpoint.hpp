@@ -40,8 +40,9 @@
 
 namespace qd::runtime {
 
-// CRC-32C (Castagnoli, as in iSCSI and ext4) of size bytes.
-std::uint32_t crc32c(const char* bytes, std::size_t size);
+// CRC-32C (Castagnoli, as in iSCSI and ext4) of size bytes; with `previous`, the CRC-32C of the
+// bytes that `previous` is the CRC-32C of, followed by these.
+std::uint32_t crc32c(const char* bytes, std::size_t size, std::uint32_t previous = 0);
 
 struct CheckpointCounters {
   int loop = -1;  // the last loop the checkpoint completes
@@ -50,8 +51,16 @@ struct CheckpointCounters {
   double train_seconds = 0.0;
 };
 
-// A log file the run appends to and its size at the checkpoint.
-using LogSize = std::pair<std::string, std::uint64_t>;
+// A log file the run appends to, its size at the checkpoint and the CRC-32C of those bytes
+// (`checksummed` is false in a checkpoint written before qdrun recorded them: only the size is
+// checked then).
+struct LogSize {
+  std::string name;
+  std::uint64_t size = 0;
+  std::uint32_t crc = 0;
+  bool checksummed = true;
+  bool operator<(const LogSize& other) const { return name < other.name; }
+};
 
 class CheckpointStore {
  public:

@@ -2,6 +2,7 @@
 
 #include <qd/errors.hpp>
 
+#include <cstdio>
 #include <sstream>
 
 namespace qd::runtime {
@@ -39,9 +40,16 @@ std::string grid_toml(const GridSpec& g) {
 std::string toml_string(const std::string& s) {
   std::string out = "\"";
   for (char c : s) {
+    const auto u = static_cast<unsigned char>(c);
     if (c == '"' || c == '\\') out += '\\';
     if (c == '\n') {
       out += "\\n";
+      continue;
+    }
+    if (u < 0x20 || u == 0x7f) {  // TOML allows no control character in a basic string
+      char esc[8];
+      std::snprintf(esc, sizeof(esc), "\\u%04x", u);
+      out += esc;
       continue;
     }
     out += c;
@@ -81,6 +89,15 @@ Owned<T> create(const Registry& registry, const ComponentConfig& cc, const Build
   try {
     return registry.create<T>(*cc.entry, cc.config, ctx);
   } catch (const ConfigError& e) {
+    // A key the component does not declare is no place in the experiment file: the plugin asked
+    // for a parameter it never declared (a misspelt name in its code).
+    if (!cc.config.has(e.key())) {
+      std::string declared;
+      for (const std::string& k : cc.config.keys()) declared += (declared.empty() ? "" : ", ") + k;
+      throw PluginError("component '" + cc.type + "' (" + cc.entry->plugin->path + ") reads the parameter '" + e.key() +
+                        "', which it does not declare (a bug in the plugin; it declares: " +
+                        (declared.empty() ? std::string("nothing") : declared) + ")");
+    }
     throw ConfigError(e.key(), cc.config.where(e.key()) + ": [" + cc.table + "]." + e.key() + ": " + e.what());
   }
 }

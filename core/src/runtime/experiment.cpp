@@ -1,5 +1,6 @@
 #include "runtime/experiment.hpp"
 
+#include "runtime/components.hpp"
 #include "runtime/run_directory.hpp"
 
 #include <qd/errors.hpp>
@@ -7,8 +8,12 @@
 #include <toml++/toml.h>
 
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -41,10 +46,114 @@ Document& Document::operator=(Document&&) noexcept = default;
 
 namespace {
 
+// An experiment file, a run's config.toml or provenance: far beyond any real one.
+constexpr std::uint64_t kMaxTomlBytes = 16 << 20;
+
+// Text for a message: control characters (a newline in a path given on the command line) shown
+// as escapes, so a message stays one line.
+std::string printable(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u >= 0x20 && u != 0x7f) {
+      out += c;
+    } else {
+      char esc[8];
+      std::snprintf(esc, sizeof(esc), c == '\n' ? "\\n" : "\\x%02x", u);
+      out += esc;
+    }
+  }
+  return out;
+}
+
+bool has_control_character(const std::string& text) {
+  return std::any_of(text.begin(), text.end(), [](char c) {
+    const auto u = static_cast<unsigned char>(c);
+    return u < 0x20 || u == 0x7f;
+  });
+}
+
+std::string key_text(std::string_view key) {
+  const bool bare = !key.empty() && std::all_of(key.begin(), key.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-';
+  });
+  return bare ? std::string(key) : toml_string(std::string(key));
+}
+
+// TOML text of a value, numbers in their shortest exact form (toml++ writes 17 significant
+// digits: 0.050000000000000003 for 0.05), for config.toml and for messages.
+void put_value(std::ostream& o, const toml::node& n) {
+  if (const auto* f = n.as_floating_point()) {
+    std::string t = format_number(f->get());
+    if (t.find_first_of(".eEn") == std::string::npos) t += ".0";  // TOML: a float has a point or exponent
+    o << t;
+  } else if (const auto* i = n.as_integer()) {
+    o << i->get();
+  } else if (const auto* b = n.as_boolean()) {
+    o << (b->get() ? "true" : "false");
+  } else if (const auto* str = n.as_string()) {
+    // A literal string where one can hold it, as toml++ writes them.
+    const std::string& v = str->get();
+    if (v.find('\'') == std::string::npos && !has_control_character(v))
+      o << '\'' << v << '\'';
+    else
+      o << toml_string(v);
+  } else if (const auto* a = n.as_array()) {
+    o << '[';
+    for (std::size_t k = 0; k < a->size(); ++k) {
+      if (k) o << ", ";
+      put_value(o, *a->get(k));
+    }
+    o << ']';
+  } else if (const auto* t = n.as_table()) {
+    o << '{';
+    bool first = true;
+    for (auto&& [k, v] : *t) {
+      o << (first ? " " : ", ") << key_text(k.str()) << " = ";
+      put_value(o, v);
+      first = false;
+    }
+    o << (first ? "}" : " }");
+  } else {
+    n.visit([&](const auto& v) { o << v; });  // dates and times, which no parameter takes
+  }
+}
+
+std::string value_text(const toml::node& n) {
+  std::ostringstream o;
+  put_value(o, n);
+  return o.str();
+}
+
+// A resolved configuration as TOML: each table's values, then its sub-tables under [headers].
+void put_table(std::ostream& o, const toml::table& t, const std::string& prefix) {
+  for (auto&& [k, v] : t) {
+    if (v.is_table()) continue;
+    o << key_text(k.str()) << " = ";
+    put_value(o, v);
+    o << '\n';
+  }
+  for (auto&& [k, v] : t) {
+    if (!v.is_table()) continue;
+    const std::string name = prefix.empty() ? key_text(k.str()) : prefix + "." + key_text(k.str());
+    o << "\n[" << name << "]\n";
+    put_table(o, *v.as_table(), name);
+  }
+}
+
+std::string toml_text(const toml::table& t) {
+  std::ostringstream o;
+  put_table(o, t, "");
+  std::string text = o.str();
+  if (!text.empty() && text.front() == '\n') text.erase(0, 1);
+  return text;
+}
+
 std::string location(const toml::source_region& src) {
   if (!src.path) return "<unknown>";
   const std::string& p = *src.path;
-  if (p.rfind("--", 0) == 0) return p;  // command-line options (--set, --seed, --backend) name themselves
+  // Command-line options (--set, --seed, --backend, --output) name themselves.
+  if (p.rfind("--", 0) == 0) return printable(p);
   return p + ":" + std::to_string(src.begin.line) + ":" + std::to_string(src.begin.column);
 }
 
@@ -147,9 +256,19 @@ void layer(Layered& base, Layered&& over) {
 Layered parse_file(const fs::path& file, int depth) {
   if (depth > 16) throw InputError(file.string() + ": includes nest more than 16 levels (a cycle?)");
   std::error_code ec;
-  if (!fs::is_regular_file(file, ec)) throw InputError(file.string() + ": no such experiment file");
+  const fs::file_status st = fs::status(file, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory)
+    throw InputError(file.string() + ": cannot read the experiment file: " + ec.message());
+  if (!fs::exists(st)) throw InputError(file.string() + ": no such experiment file");
+  // A FIFO or device would block or never end: an experiment file is a regular file (a symlink to
+  // one is fine), and far smaller than this.
+  if (!fs::is_regular_file(st)) throw InputError(file.string() + ": not a regular file, so not an experiment file");
+  const auto size = fs::file_size(file, ec);
+  if (!ec && size > kMaxTomlBytes)
+    throw InputError(file.string() + ": " + std::to_string(size) + " bytes, larger than any experiment file (" +
+                     std::to_string(kMaxTomlBytes >> 20) + " MB at most)");
   std::ifstream in(file);
-  if (!in) throw InputError(file.string() + ": cannot open experiment file");
+  if (!in) throw InputError(file.string() + ": cannot open experiment file: " + std::strerror(errno));
   std::stringstream ss;
   ss << in.rdbuf();
   toml::table t;
@@ -251,11 +370,19 @@ bool number_in_range(double v, const ParamSpec& s) {
   return v >= s.min && v <= s.max;
 }
 
+// A bound or value as the user would write it: integers in full (9000000000000000, not 9e+15),
+// floats in their shortest exact form.
+std::string number_text(double v, bool integer) {
+  if (integer && std::isfinite(v) && std::abs(v) < 9.2e18 && v == std::floor(v))
+    return std::to_string(static_cast<long long>(v));
+  return format_number(v);
+}
+
+// "[0, 1]"; an infinite bound is excluded: "[0, inf)", "(-inf, inf)".
 std::string range_text(const ParamSpec& s) {
-  std::ostringstream o;
-  o << "[" << (std::isinf(s.min) ? std::string("-inf") : (std::ostringstream() << s.min).str()) << ", "
-    << (std::isinf(s.max) ? std::string("inf") : (std::ostringstream() << s.max).str()) << "]";
-  return o.str();
+  const bool integer = s.type == ParamType::kInteger || s.type == ParamType::kIntegerList;
+  return (std::isinf(s.min) ? "(" : "[") + number_text(s.min, integer) + ", " + number_text(s.max, integer) +
+         (std::isinf(s.max) ? ")" : "]");
 }
 
 // Checks one value node against its spec and stores it in `cfg`.
@@ -265,8 +392,9 @@ void take_value(const toml::node& n, const ParamSpec& s, const std::string& path
     fail_at(n, path + " must be " + std::string(s.type == ParamType::kInteger ? "an " : "a ") + to_string(s.type));
   };
   auto check_number = [&](double v, const toml::node& at) {
-    if (!std::isfinite(v) || !number_in_range(v, s))
-      fail_at(at, path + " = " + (std::ostringstream() << v).str() + " is out of range " + range_text(s));
+    const std::string text = at.is_integer() ? std::to_string(at.as_integer()->get()) : format_number(v);
+    if (!std::isfinite(v)) fail_at(at, path + " = " + text + " is not a finite number (range " + range_text(s) + ")");
+    if (!number_in_range(v, s)) fail_at(at, path + " = " + text + " is out of range " + range_text(s));
   };
   switch (s.type) {
     case ParamType::kBool:
@@ -437,12 +565,11 @@ void Document::apply_override(const std::string& assignment, const std::string& 
     bare = true;  // --set mutator.type=iso
   }
   if (bare) {
-    std::string quoted = "\"";
-    for (char c : value) {
-      if (c == '"' || c == '\\') quoted += '\\';
-      quoted += c;
+    try {
+      parsed = toml::parse("v = " + toml_string(value), source);
+    } catch (const toml::parse_error& e) {
+      throw InputError(printable(source) + ": the value cannot be read: " + std::string(e.description()));
     }
-    parsed = toml::parse("v = " + quoted + "\"", source);
   }
   std::vector<std::string> parts;
   for (std::size_t pos = 0;;) {
@@ -451,17 +578,20 @@ void Document::apply_override(const std::string& assignment, const std::string& 
     if (dot == std::string::npos) break;
     pos = dot + 1;
   }
+  for (const auto& part : parts)
+    if (part.empty()) throw InputError(printable(source) + ": empty key");
   toml::table* t = &impl->root;
   for (std::size_t i = 0; i + 1 < parts.size(); ++i) {
     toml::node* n = t->get(parts[i]);
     if (!n) {
-      t->insert_or_assign(parts[i], toml::table{});
+      // Made by parsing, so that an error about the table (an unknown one) names this option.
+      toml::table made = toml::parse("t = {}", source);
+      t->insert_or_assign(parts[i], std::move(*made.get("t")));
       n = t->get(parts[i]);
     }
-    if (!n->is_table()) throw InputError(source + ": '" + parts[i] + "' is not a table");
+    if (!n->is_table()) throw InputError(printable(source) + ": '" + parts[i] + "' is not a table");
     t = n->as_table();
   }
-  if (parts.back().empty()) throw InputError(source + ": empty key");
   t->insert_or_assign(parts.back(), std::move(*parsed.get("v")));
   // A key given on the command line is always checked against the final component; a new type
   // leaves the keys already there tagged with the old one.
@@ -549,6 +679,11 @@ Experiment resolve(const Document& doc, const Registry& registry) {
   if (s.name.empty()) s.name = ex.file.empty() ? "experiment" : ex.file.stem().string();
   if (s.name.find('/') != std::string::npos || s.name == "." || s.name == "..")
     throw InputError(e.where("name") + ": experiment.name must be a plain name, not a path");
+  // Both name directories; a newline or other control character in one is a mistake that would
+  // only surface later, in every tool that lists them.
+  if (has_control_character(s.name))
+    throw InputError(e.where("name") + ": experiment.name contains a control character (" + printable(s.name) +
+                     "); it names the run directory");
   s.seed = static_cast<std::uint64_t>(e.get_int("seed"));
   s.loops = static_cast<int>(e.get_int("loops"));
   s.iterations = static_cast<int>(e.get_int("iterations"));
@@ -559,6 +694,9 @@ Experiment resolve(const Document& doc, const Registry& registry) {
   s.dataset_order = e.get_string("dataset_order");
   for (auto h : p.get_int_list("hidden")) s.hidden.push_back(static_cast<int>(h));
   s.output_dir = o.get_string("dir");
+  if (has_control_character(s.output_dir))
+    throw InputError(o.where("dir") + ": output.dir contains a control character (" + printable(s.output_dir) + ")");
+  if (s.output_dir.empty()) throw InputError(o.where("dir") + ": output.dir is empty");
   s.snapshot_every = static_cast<int>(o.get_int("snapshot_every"));
   s.snapshot_parameters = o.get_bool("snapshot_parameters");
   s.workers = static_cast<int>(w.get_int("workers"));
@@ -666,9 +804,7 @@ Experiment resolve(const Document& doc, const Registry& registry) {
     put("search_path", search_path);
     resolved.insert_or_assign("plugins", std::move(t));
   }
-  std::ostringstream out;
-  out << resolved << "\n";
-  ex.resolved_toml = out.str();
+  ex.resolved_toml = toml_text(resolved);
   return ex;
 }
 
@@ -681,9 +817,7 @@ void resolve_default_component(Experiment& ex, ComponentConfig& cc, const Compon
   put_config(out, cc.config, entry.info->params, entry.info->param_count);
   toml::table wrapper;
   wrapper.insert_or_assign(cc.table, std::move(out));
-  std::ostringstream o;
-  o << wrapper << "\n";
-  ex.resolved_toml += "\n" + o.str();
+  ex.resolved_toml += "\n" + toml_text(wrapper);
 }
 
 std::string describe_params(const ParamSpec* params, std::size_t count) {
@@ -734,16 +868,53 @@ std::string describe_table(const std::string& name, const Registry& registry) {
   return "";
 }
 
-std::string missing_plugin_hint(const fs::path& run_dir, const Registry& registry) {
-  // The newest session's provenance names the plugins the run last loaded.
+namespace {
+// The newest session's provenance (the plugins the run last loaded); empty when unreadable.
+toml::table newest_provenance(const fs::path& run_dir) {
   const fs::path newest = session_provenance(run_dir, std::numeric_limits<int>::max());
-  std::error_code ec;
-  toml::table prov;
   try {
-    prov = toml::parse_file(newest.string());
+    return toml::parse(read_run_file(newest, kMaxTomlBytes), newest.string());
   } catch (const std::exception&) {
-    return "";
+    return {};
   }
+}
+}  // namespace
+
+std::string changed_plugins(const fs::path& run_dir, const Experiment& ex, std::vector<std::string>* notes) {
+  const toml::table prov = newest_provenance(run_dir);
+  const toml::array* plugins = prov["plugins"].as_array();
+  if (!plugins) return "";
+  std::string out;
+  std::error_code ec;
+  for (const auto& node : *plugins) {
+    const toml::table* p = node.as_table();
+    if (!p) continue;
+    const std::string table = (*p)["table"].value_or(std::string());
+    const std::string plugin = (*p)["plugin"].value_or(std::string());
+    const std::string version = (*p)["version"].value_or(std::string());
+    const std::string path = (*p)["path"].value_or(std::string());
+    const ComponentConfig* cc = nullptr;
+    for (const ComponentConfig* c : {&ex.environment, &ex.descriptor, &ex.representation, &ex.mutator, &ex.initial})
+      if (c->table == table) cc = c;
+    if (!cc || !cc->entry || plugin.empty()) continue;
+    const PluginInfo& now = *cc->entry->plugin->info;
+    const std::string recorded =
+        "[" + table + "] '" + cc->type + "' came from " + path + " (plugin " + plugin + " " + version + ")";
+    if (plugin != now.plugin_name) {
+      out += (out.empty() ? "" : "; ") + recorded + (fs::exists(path, ec) ? "" : ", which no longer exists") +
+             ", but would now come from " + cc->entry->plugin->path + " (plugin " + now.plugin_name + " " +
+             now.plugin_version + ")";
+    } else if (notes && version != now.plugin_version) {
+      notes->push_back(recorded + "; it is now version " + now.plugin_version + " (" + cc->entry->plugin->path +
+                       "), which may compute otherwise");
+    }
+  }
+  return out;
+}
+
+std::string missing_plugin_hint(const fs::path& run_dir, const Registry& registry) {
+  std::error_code ec;
+  const toml::table prov = newest_provenance(run_dir);
   const toml::array* plugins = prov["plugins"].as_array();
   if (!plugins) return "";
   std::string out;
@@ -781,12 +952,7 @@ void flatten(const toml::table& t, const std::string& prefix, std::map<std::stri
     if (const toml::table* sub = node.as_table()) {
       flatten(*sub, path, out);
     } else {
-      std::ostringstream o;
-      if (const toml::array* a = node.as_array())
-        o << *a;
-      else
-        node.visit([&](const auto& v) { o << v; });
-      out[path] = o.str();
+      out[path] = value_text(node);
     }
   }
 }
@@ -794,8 +960,12 @@ void flatten(const toml::table& t, const std::string& prefix, std::map<std::stri
 
 std::vector<ConfigDifference> config_differences(const std::string& before, const std::string& after) {
   std::map<std::string, std::string> a, b;
-  flatten(toml::parse(before, std::string_view("checkpoint")), "", a);
-  flatten(toml::parse(after, std::string_view("config.toml")), "", b);
+  try {
+    flatten(toml::parse(before, std::string_view("checkpoint")), "", a);
+    flatten(toml::parse(after, std::string_view("config.toml")), "", b);
+  } catch (const toml::parse_error& e) {
+    throw InputError(location(e.source()) + ": malformed TOML: " + std::string(e.description()));
+  }
   std::vector<ConfigDifference> out;
   for (const auto& [key, value] : a) {
     const auto it = b.find(key);
@@ -807,6 +977,12 @@ std::vector<ConfigDifference> config_differences(const std::string& before, cons
   for (const auto& [key, value] : b)
     if (a.count(key) == 0) out.push_back({key, "(absent)", value});
   return out;
+}
+
+bool may_change_on_resume(const std::string& key) {
+  for (const char* prefix : {"evaluation.", "output.", "plugins."})
+    if (key.rfind(prefix, 0) == 0) return true;
+  return key == "experiment.loops";
 }
 
 }  // namespace qd::runtime

@@ -116,7 +116,14 @@ std::vector<CoreTable> core_tables();
 struct ConfigDifference {
   std::string key, before, after;
 };
+// Throws InputError when either text is not TOML.
 std::vector<ConfigDifference> config_differences(const std::string& before, const std::string& after);
+
+// Keys --resume may change (dotted path): the budget (experiment.loops), how and where evaluations
+// run ([evaluation]), what is written ([output]) and where plugins are found ([plugins]). Anything
+// else would make the resumed run another experiment; experiment.name (with the seed) names the run
+// directory, so a run keeps it.
+bool may_change_on_resume(const std::string& key);
 
 // Renders a component's parameters for `qdrun --describe`.
 std::string describe_params(const ParamSpec* params, std::size_t count);
@@ -130,5 +137,13 @@ std::string describe_table(const std::string& name, const Registry& registry);
 // provenance files record but `registry` does not provide (which library, where it was, and whether
 // that file is gone, rejected or outside the search path). Empty when there is nothing to say.
 std::string missing_plugin_hint(const std::filesystem::path& run_dir, const Registry& registry);
+
+// For --resume, --replay and --latents: the components of `ex` (built) that would now come from
+// another plugin than the one the run's newest session recorded, which happens when the library the
+// run used is gone and another provides the same name (one sentence each; "" when none). A plugin
+// of the same name at another path is the same plugin; one whose version changed adds a sentence to
+// `notes`.
+std::string changed_plugins(const std::filesystem::path& run_dir, const Experiment& ex,
+                            std::vector<std::string>* notes = nullptr);
 
 }  // namespace qd::runtime

@@ -21,10 +21,15 @@ struct LibraryHoldingDeleter {
 template <class T>
 using Owned = std::unique_ptr<T, LibraryHoldingDeleter>;
 
+// A plugin library found on the search path. discover() reads what it declares in a probe process
+// and loads it into qdrun only when one of its components is constructed, so a run loads the
+// libraries it uses and no other; load() loads it at once.
 struct LoadedPlugin {
-  std::shared_ptr<const void> library;  // a boost::dll::shared_library, type-erased
+  std::shared_ptr<const void> library;  // a boost::dll::shared_library, type-erased; null until loaded
   std::string path;
-  const PluginInfo* info = nullptr;
+  const PluginInfo* info = nullptr;        // what it declares (the probe's copy, or its own once loaded)
+  const PluginInfo* own_info = nullptr;    // the loaded library's own (null until loaded)
+  std::shared_ptr<const void> probe_copy;  // owns `info` when a probe process read it
 };
 
 struct ComponentEntry {
@@ -66,13 +71,16 @@ class Registry {
   // The user's directories, absolute, in search order.
   std::vector<std::string> user_dirs() const;
 
-  // Loads every qd_*.so in the search directories. Libraries that fail a check are recorded in
-  // rejected() instead of throwing, so one stale file does not block unrelated experiments.
+  // Finds every qd_*.so in the search directories and reads what it declares in a probe process of
+  // its own (forked): a library whose constructors or entry function crash, hang or call exit()
+  // ends only that process. Libraries that fail a check are recorded in rejected() instead of
+  // throwing, so one stale or hostile file does not block unrelated experiments, --list included.
+  // Nothing is loaded into this process until a component is constructed (create()).
   void discover();
 
-  // Loads one library and registers its components. Throws qd::PluginError naming the path and the
-  // failed check. A component whose name an earlier library provides is left out (shadowed()), the
-  // library's other components are registered.
+  // Loads one library into this process at once and registers its components. Throws
+  // qd::PluginError naming the path and the failed check. A component whose name an earlier library
+  // provides is left out (shadowed()), the library's other components are registered.
   std::shared_ptr<LoadedPlugin> load(const std::filesystem::path& path);
 
   const ComponentEntry* find(const std::string& name) const;
@@ -87,8 +95,9 @@ class Registry {
   // One line per (library, shadowing library) pair, naming both and the names left out.
   std::vector<std::string> warnings() const;
 
-  // Constructs a component; the result keeps its library loaded. Exceptions from the factory come
-  // back as qd::ConfigError (with the key) or qd::PluginError naming the component and library.
+  // Constructs a component (loading its library into this process first, if discover() only
+  // probed it); the result keeps its library loaded. Exceptions from the factory come back as
+  // qd::ConfigError (with the key) or qd::PluginError naming the component and library.
   template <class T>
   Owned<T> create(const ComponentEntry& entry, const Config& config, const BuildContext& ctx) const {
     Component* raw = construct(entry, config, ctx);
@@ -102,6 +111,8 @@ class Registry {
 
  private:
   std::shared_ptr<LoadedPlugin> load(const std::filesystem::path& path, Rejection& seen);
+  std::shared_ptr<LoadedPlugin> add(const std::filesystem::path& path, const PluginInfo* info,
+                                    std::shared_ptr<const void> library, std::shared_ptr<const void> probe_copy);
   Component* construct(const ComponentEntry& entry, const Config& config, const BuildContext& ctx) const;
   static void destroy(Component* c, const ComponentEntry& entry) noexcept;
   [[noreturn]] static void throw_wrong_type(const ComponentEntry& entry);

@@ -6,7 +6,7 @@
 #include <qd/errors.hpp>
 
 #include <algorithm>
-#include <fstream>
+#include <sstream>
 
 namespace qd::runtime {
 namespace fs = std::filesystem;
@@ -21,9 +21,10 @@ Trace replay_elite(const Run& run, std::int64_t cell, const fs::path& svg) {
   std::vector<Trace> traces(1);
   const std::uint64_t seed = 0;  // the paper's environments do not use episode seeds
   c.environment->rollout(RolloutBatch{&c.shape, theta, &seed, 0, 1}, traces.data());
-  std::ofstream out(svg);
-  if (!out || !c.environment->draw_svg(traces[0], out))
+  std::ostringstream out;
+  if (!c.environment->draw_svg(traces[0], out))
     throw InputError("cannot draw to " + svg.string() + " (environment '" + run.experiment().environment.type + "')");
+  write_file_atomic(svg, out.str());
   return traces[0];
 }
 

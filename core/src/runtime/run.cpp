@@ -121,19 +121,28 @@ void Run::create_directory() {
   std::string header =
       "loop,iteration,evaluations,elites,coverage,mixing_ratio,added,replaced,invalid,wall_seconds,train_seconds";
   for (const auto& n : c_.metric_names) header += "," + n;
-  dir_.create(ex_.resolved_toml, header);
+  restarted_ = dir_.create(ex_.resolved_toml, header);
+  if (opt_.on_start) opt_.on_start();
+  dir_.set_status("running");
   dir_.write("grid.toml", grid_toml(c_.grid));
   write_provenance();
   next_loop_ = 0;
 }
 
 void Run::open_for_resume() {
-  if (!CheckpointStore::exists(dir_.path()))
-    throw InputError(dir_.path().string() +
-                     " has no checkpoint to resume from: the run stopped before the end of loop 0, so there is "
-                     "nothing to keep; delete the directory and start the run again");
+  if (!CheckpointStore::exists(dir_.path())) {
+    std::string found;
+    if (RunDirectory::leftover(dir_.path(), &found) == Leftover::kResults)
+      throw InputError(dir_.path().string() + ": cannot resume: " + (dir_.path() / "checkpoint.bin").string() +
+                       " is missing, but the run has results (" + found +
+                       "); restore checkpoint.bin, or move the directory away and start the run again");
+    // It stopped before its first checkpoint: nothing to keep, so resuming is starting again.
+    create_directory();
+    return;
+  }
   dir_.open();
   load_checkpoint(true);
+  if (opt_.on_start) opt_.on_start();
   dir_.write_config(ex_.resolved_toml);
   dir_.write("grid.toml", grid_toml(c_.grid));
   dir_.set_status("running");
@@ -152,16 +161,6 @@ std::vector<std::string> Run::log_names() const {
   return names;
 }
 
-namespace {
-// Keys --resume may change: the budget (loops), how and where evaluations run, what is written,
-// and where plugins are found. Everything else would make the resumed run another experiment.
-bool may_change_on_resume(const std::string& key) {
-  for (const char* prefix : {"evaluation.", "output.", "plugins."})
-    if (key.rfind(prefix, 0) == 0) return true;
-  return key == "experiment.loops" || key == "experiment.name";
-}
-}  // namespace
-
 void Run::load_checkpoint(bool resuming) {
   const ExperimentSettings& s = ex_.settings;
   try {
@@ -173,7 +172,8 @@ void Run::load_checkpoint(bool resuming) {
         if (!may_change_on_resume(d.key))
           throw InputError(dir_.path().string() + ": cannot resume: " + d.key + " is " + d.after +
                            " in config.toml (or --set) but the run was made with " + d.before +
-                           "; only experiment.loops and the [evaluation], [output] and [plugins] keys may change");
+                           "; only experiment.loops and the [evaluation], [output] and [plugins] keys may change" +
+                           (d.key == "experiment.name" ? " (the run directory is named after experiment.name)" : ""));
       if (n.loop + 1 > s.loops)
         throw InputError(dir_.path().string() + ": cannot resume: experiment.loops = " + std::to_string(s.loops) +
                          " is below the " + std::to_string(n.loop + 1) + " loops that have run");
@@ -212,7 +212,13 @@ bool Run::run() {
     const int loop = next_loop_++;
     loop_.run_loop(loop);
     if (s.snapshot_every > 0 && loop % s.snapshot_every == 0) {
-      fs::create_directories(dir_.path() / "archive");
+      // The snapshots' directory is the run's own, never a symlink out of it.
+      const fs::path snapshots = dir_.path() / "archive";
+      std::error_code ec;
+      const fs::file_status st = fs::symlink_status(snapshots, ec);
+      if (fs::exists(st) && !fs::is_directory(st))
+        throw InputError(snapshots.string() + " is not a directory of the run (a symlink or a file); move it away");
+      fs::create_directories(snapshots);
       char name[32];
       std::snprintf(name, sizeof(name), "loop-%05d.csv", loop);
       write_archive_csv(dir_.path() / "archive" / name, archive_, s.snapshot_parameters);

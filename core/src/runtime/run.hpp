@@ -47,6 +47,9 @@ struct RunOptions {
   std::string directory;     // run directory; empty = <output>/<name>/seed-<seed>
   std::string command_line;
   std::function<void(const Progress&)> on_progress;
+  // Called once the run owns its directory (locked, checked, loaded), right before its status
+  // becomes "running": from then on, whatever ends the run may write the status.
+  std::function<void()> on_start;
 };
 
 class Run final : private LoopObserver {
@@ -61,10 +64,15 @@ class Run final : private LoopObserver {
   const std::filesystem::path& directory() const noexcept { return dir_.path(); }
   const Experiment& experiment() const noexcept { return ex_; }
 
-  // A fresh run directory (error if it already holds a run).
+  // A fresh run directory (error if it already holds a run; the start of the same run that
+  // stopped before its first checkpoint is started again: restarted()).
   void create_directory();
-  // An existing run directory: loads its checkpoint and cuts the logs back to it.
+  // An existing run directory: loads its checkpoint and cuts the logs back to it. A run that
+  // stopped before its first checkpoint has nothing to keep: it starts again (restarted()).
   void open_for_resume();
+  // Whether create_directory() or open_for_resume() removed the start of a run that had no
+  // checkpoint and started it again.
+  bool restarted() const noexcept { return restarted_; }
   // Loads the checkpoint of an existing run directory without touching any file in it (for tools
   // that inspect a run, possibly while it is still running).
   void open_for_inspection();
@@ -104,6 +112,7 @@ class Run final : private LoopObserver {
   MapElites loop_;
 
   int next_loop_ = 0;
+  bool restarted_ = false;
   std::uint64_t session_first_evaluation_ = 0;
   double wall_before_ = 0.0;  // wall seconds of earlier sessions (resume)
   double train_seconds_ = 0.0;

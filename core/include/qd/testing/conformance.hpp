@@ -18,9 +18,12 @@
 // them, and so that the installed core does not need GoogleTest.) What they check:
 //
 //  * check_environment: info() sizes are positive; one thread and several threads on disjoint
-//    ranges give identical traces; a second run repeats them; a range [begin, end) fills exactly
-//    those rows (the others are untouched) and equals the same rows of the whole batch; statuses
-//    are valid, failed ones carry a message; the trajectories of kOk traces are finite.
+//    ranges give identical traces; no qd::Policy object is loaded on two threads (a Policy shared
+//    between rollout() calls, which races only when calls overlap: found every time, whatever the
+//    timing, as the threads take turns while the core watches Policy::load); a second run repeats
+//    the traces; a range [begin, end) fills exactly those rows (the others are untouched) and
+//    equals the same rows of the whole batch; statuses are valid, failed ones carry a message; the
+//    trajectories of kOk traces are finite.
 //  * check_descriptor: the grid is consistent (per-dimension sizes and bounds, cells = product of
 //    the shape, as the core requires) and fixed; cells lie in [0, cells) or are -1; described
 //    values are finite; results repeat and do not depend on threads or on how the traces are split.
@@ -59,18 +62,22 @@
 #include <qd/rng.hpp>
 #include <qd/testing/elites.hpp>
 #include <qd/testing/linear_model.hpp>
+#include <qd/testing/policy_watch.hpp>
 #include <qd/types.hpp>
 #include <qd/version.hpp>
 
 #include <Eigen/Core>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <condition_variable>
 #include <cstdint>
 #include <cstring>
 #include <functional>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <ostream>
 #include <sstream>
 #include <stdexcept>
@@ -175,14 +182,24 @@ bool call(Report& r, const std::string& what, F&& f) {
   return false;
 }
 
-// Runs f(t) for t = 0 .. count-1, each on its own thread, all at once. Returns the first
-// exception's message, or "".
+// Runs f(t) for t = 0 .. count-1, each on its own thread. `in_turns` false: all at once (each
+// thread starts f when all exist, so the calls overlap as much as they can); true: one after the
+// other, thread t once thread t-1 has returned, every thread alive until the last has returned
+// (so no two of them share a stack). Returns the first exception's message, or "".
 template <class F>
-std::string concurrently(std::size_t count, const F& f) {
+std::string on_own_threads(std::size_t count, bool in_turns, const F& f) {
   std::vector<std::string> errors(count);
   std::vector<std::thread> threads;
+  std::mutex mutex;
+  std::condition_variable changed;
+  std::size_t started = 0, turn = 0;
   for (std::size_t t = 0; t < count; ++t)
-    threads.emplace_back([&f, &errors, t] {
+    threads.emplace_back([&, t] {
+      std::unique_lock<std::mutex> lock(mutex);
+      ++started;
+      changed.notify_all();
+      changed.wait(lock, [&] { return started == count && (!in_turns || turn == t); });
+      lock.unlock();
       try {
         f(t);
       } catch (const std::exception& e) {
@@ -190,6 +207,10 @@ std::string concurrently(std::size_t count, const F& f) {
       } catch (...) {
         errors[t] = "a non-standard exception";
       }
+      lock.lock();
+      ++turn;
+      changed.notify_all();
+      changed.wait(lock, [&] { return turn == count; });
     });
   for (auto& t : threads) t.join();
   for (const auto& e : errors)
@@ -197,12 +218,17 @@ std::string concurrently(std::size_t count, const F& f) {
   return "";
 }
 
-// Splits [0, n) into `parts` contiguous ranges of unequal sizes (the k-th ends at n·k²/parts²)
-// and runs f(begin, end) for each on its own thread, all at once.
 template <class F>
-std::string on_threads(std::size_t n, int parts, const F& f) {
+std::string concurrently(std::size_t count, const F& f) {
+  return on_own_threads(count, false, f);
+}
+
+// Splits [0, n) into `parts` contiguous ranges of unequal sizes (the k-th ends at n·k²/parts²)
+// and runs f(begin, end) for each on its own thread, all at once (or in turns).
+template <class F>
+std::string on_threads(std::size_t n, int parts, const F& f, bool in_turns = false) {
   const auto count = static_cast<std::size_t>(std::max(parts, 1));
-  return concurrently(count, [&](std::size_t t) {
+  return on_own_threads(count, in_turns, [&](std::size_t t) {
     const auto end_of = [&](std::size_t k) { return k == count ? n : n * k * k / (count * count); };
     f(end_of(t), end_of(t + 1));
   });
@@ -403,6 +429,23 @@ inline Report check_environment(const Environment& env, const EnvironmentOptions
     detail::compare_traces(
         r, whole, threaded, 0, n,
         "rollouts on " + std::to_string(o.threads) + " threads over disjoint ranges differ from one thread's");
+
+  // Shared state between calls gives wrong traces only when calls overlap, which the scheduler
+  // decides. A shared qd::Policy is found whatever it decides: the threads take turns (one call
+  // each, all threads alive) while the core watches which threads load each Policy object.
+  std::vector<Trace> in_turns(n);
+  watch_policy_loads(true);
+  const std::string turn_error = detail::on_threads(
+      n, std::max(o.threads, 2), [&](std::size_t b, std::size_t e) { run(in_turns, b, e); }, true);
+  watch_policy_loads(false);
+  if (r.expect(turn_error.empty(), "rollout() on several threads in turn threw: " + turn_error)) {
+    r.expect(!policy_loaded_on_two_threads(),
+             "rollout() loads one qd::Policy object on several threads (a Policy kept between calls, such as a "
+             "mutable member): a Policy is not thread-safe and concurrent rollouts would overwrite each other's "
+             "parameters; make one per rollout() call");
+    detail::compare_traces(r, whole, in_turns, 0, n,
+                           "rollouts on several threads in turn over disjoint ranges differ from one thread's");
+  }
 
   // A range touches its own rows only (and starts from empty traces, as the core hands them over).
   const std::size_t begin = n / 4, end = begin + n / 2;
