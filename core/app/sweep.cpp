@@ -272,8 +272,8 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
 // Removes what a run that died in loop 0 wrote, and nothing else (a user's notes stay).
 void remove_unfinished_start(const fs::path& dir) {
   std::error_code ec;
-  for (const char* name : {"config.toml", "provenance.toml", "status", "grid.toml", "metrics.csv", "training.csv",
-                           "losses.csv", "pca.csv", "dataset.bin", "checkpoint.bin.tmp"})
+  for (const char* name : {"config.toml", "provenance.toml", "status", "grid.toml", "centroids.csv", "metrics.csv",
+                           "training.csv", "losses.csv", "pca.csv", "dataset.bin", "checkpoint.bin.tmp"})
     fs::remove(dir / name, ec);
   for (const auto& e : fs::directory_iterator(dir, ec)) {
     const std::string name = e.path().filename().string();

@@ -178,7 +178,7 @@ void guarded_describe(const Descriptor& desc, const std::string& label, const Tr
 
 RowEvaluator::RowEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape,
                            PluginLabels labels)
-    : env_(env), desc_(desc), shape_(shape), labels_(std::move(labels)), dims_(desc.grid().shape.size()) {}
+    : env_(env), desc_(desc), shape_(shape), labels_(std::move(labels)), dims_(desc.grid().dims()) {}
 
 void RowEvaluator::run(const double* params, const std::uint64_t* seeds, std::size_t rows, double* records,
                        std::size_t first_row, std::atomic<std::uint64_t>* current) {
@@ -217,12 +217,7 @@ Evaluator::~Evaluator() = default;
 
 ThreadEvaluator::ThreadEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape, int workers,
                                  PluginLabels labels)
-    : env_(env),
-      desc_(desc),
-      shape_(shape),
-      labels_(std::move(labels)),
-      dims_(desc.grid().shape.size()),
-      pool_(workers) {}
+    : env_(env), desc_(desc), shape_(shape), labels_(std::move(labels)), dims_(desc.grid().dims()), pool_(workers) {}
 
 void ThreadEvaluator::evaluate_rows(const Matrix& params, const std::uint64_t* seeds, std::size_t begin,
                                     std::size_t end, Evaluations& out) {

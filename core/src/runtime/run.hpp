@@ -89,6 +89,8 @@ class Run final : private LoopObserver {
   std::vector<std::string> log_names() const;
   void save_checkpoint(int loop);
   void write_provenance() const;
+  // grid.toml, and a CVT's centroids.csv.
+  void write_grid() const;
   void report(int loop, int iteration, bool loop_finished, const std::string& note = {});
   double wall_seconds() const;
 
