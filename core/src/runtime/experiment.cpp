@@ -764,7 +764,10 @@ std::string describe_table(const std::string& name, const Registry& registry) {
     if (name == "mutator") purpose = "the variation operator of loops n >= 1 (a mutator component)";
     if (name == "initial") purpose = "the loop-0 sampler (a mutator component that needs no parents)";
     if (name == "representation") purpose = "the latent model of the policy parameters (a representation component)";
-    if (name == "descriptor") purpose = "the behaviour descriptor (a descriptor component)";
+    if (name == "descriptor")
+      purpose =
+          "the behaviour descriptor (a descriptor component); a descriptor adapter such as \"cvt\" wraps the "
+          "descriptor of its sub-table [descriptor.wraps] (type and keys; default: the environment's own)";
     if (name == "environment") purpose = "the task (an environment component)";
     std::string dflt = ct.default_type == nullptr ? "required"
                        : *ct.default_type         ? "default \"" + std::string(ct.default_type) + "\""
