@@ -346,7 +346,7 @@ int replay(const Cli& cli) {
   const Trace t = replay_elite(*run, cli.cell, svg);
   std::int64_t cell = -1;
   const Descriptor& descriptor = *run->components().descriptor;
-  std::vector<double> values(descriptor.grid().shape.size());
+  std::vector<double> values(descriptor.grid().dims());
   if (t.status == EvalStatus::kOk) descriptor.describe(&t, 1, &cell, values.data());
   std::printf("replayed cell %lld: %s, %d steps, lands in cell %lld%s\nwrote %s\n", cli.cell, to_string(t.status),
               t.steps, static_cast<long long>(cell),

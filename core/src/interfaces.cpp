@@ -75,6 +75,22 @@ std::vector<double> Representation::estimate_fit_seconds(const std::vector<std::
   return std::vector<double>(rows.size(), 0.0);
 }
 
+const char* to_string(Outcome outcome) noexcept {
+  switch (outcome) {
+    case Outcome::kNewCell:
+      return "new cell";
+    case Outcome::kImproved:
+      return "improved";
+    case Outcome::kReplaced:
+      return "replaced";
+    case Outcome::kDiscarded:
+      return "discarded";
+    case Outcome::kInvalid:
+      return "invalid";
+  }
+  return "unknown";
+}
+
 void Mutator::begin_loop(const LoopContext&) {}
 void Mutator::feedback(const Feedback&) {}
 void Mutator::save(std::ostream&) const {}

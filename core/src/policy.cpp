@@ -56,7 +56,15 @@ PolicyShape::PolicyShape(int inputs, std::vector<int> hidden, int outputs) : hid
                        static_cast<std::size_t>(sizes_[l] + 1) * static_cast<std::size_t>(sizes_[l + 1]));
 }
 
+PolicyShape PolicyShape::direct(std::size_t parameters) {
+  QD_CHECK(parameters > 0, "a direct parameter vector needs at least one parameter");
+  PolicyShape s;
+  s.offsets_ = {0, parameters};
+  return s;
+}
+
 Policy::Policy(const PolicyShape& shape) : shape_(shape) {
+  QD_CHECK(!shape.is_direct(), "a direct parameter vector (EnvironmentInfo::parameters) has no policy network");
   for (int l = 0; l < shape_.layers(); ++l) {
     weights_t_.emplace_back(shape_.layer_outputs(l), shape_.layer_inputs(l));
     biases_.emplace_back(shape_.layer_outputs(l));

@@ -13,10 +13,17 @@ ArmEnvironment::ArmEnvironment(const Config& cfg, const BuildContext&)
     : joints_(static_cast<int>(cfg.get_int("joints"))),
       steps_(static_cast<int>(cfg.get_int("steps"))),
       record_every_(static_cast<int>(cfg.get_int("record_every"))),
-      dt_(cfg.get_float("dt")) {}
+      dt_(cfg.get_float("dt")),
+      angle_variance_(cfg.get_string("fitness") == "angle-variance") {}
 
 EnvironmentInfo ArmEnvironment::info() const {
-  return {joints_ + 3, joints_, steps_, "arm-endpoint"};
+  EnvironmentInfo info{joints_ + 3, joints_, steps_, "arm-endpoint"};
+  info.has_fitness = true;
+  // Each step moves a joint by at most dt and adds at most `joints` to the effort, so no policy
+  // does worse than these.
+  const double travel = dt_ * steps_;
+  info.fitness_lower_bound = angle_variance_ ? -travel * travel : -travel * joints_;
+  return info;
 }
 
 void ArmEnvironment::end_effector(const double* angles, double& x, double& y) const {
@@ -69,7 +76,15 @@ void ArmEnvironment::rollout(const RolloutBatch& batch, Trace* traces) const {
         t.aux.data.insert(t.aux.data.end(), angles.begin(), angles.end());
       }
     }
-    t.fitness = -energy * dt_;  // negative control effort
+    if (angle_variance_) {
+      double mean = 0.0, var = 0.0;
+      for (const double a : angles) mean += a;
+      mean /= joints_;
+      for (const double a : angles) var += (a - mean) * (a - mean);
+      t.fitness = -var / joints_;
+    } else {
+      t.fitness = -energy * dt_;  // negative control effort
+    }
   }
 }
 

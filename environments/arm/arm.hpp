@@ -5,6 +5,9 @@
 // Observation (joints + 3): joint angles, end-effector x, y, and the episode phase t/steps.
 // Action (joints): joint velocities, clipped to [-1, 1]; angle += dt * velocity each step.
 // Descriptor "arm-endpoint": the final end-effector position on a bins × bins grid over [-1, 1]².
+// Fitness: the negative control effort, or (fitness = "angle-variance") the negative variance of the
+// final joint angles, the objective of the planar-arm QD benchmark (Cully et al. 2015; Vassiliades &
+// Mouret 2018; the CMA-ME paper's arm).
 #pragma once
 
 #include <qd/config.hpp>
@@ -18,6 +21,9 @@ inline constexpr ParamSpec kArmParams[] = {
     param_int("steps", "50", 1, 1000000, "steps per episode"),
     param_float("dt", "0.1", 0.0, kUnbounded, "time step: angle += dt * clipped action"),
     param_int("record_every", "10", 1, 1000000, "trajectory row every N steps (plus the first and the last)"),
+    param_string("fitness", "\"effort\"", "effort|angle-variance",
+                 "effort = -dt * sum of squared clipped actions; angle-variance = -variance of the final joint "
+                 "angles (the planar-arm benchmark's objective)"),
 };
 inline constexpr ParamSpec kEndpointParams[] = {
     param_int("bins", "50", 1, 10000, "bins per axis over [-1, 1]"),
@@ -36,6 +42,7 @@ class ArmEnvironment final : public Environment {
  private:
   int joints_, steps_, record_every_;
   double dt_;
+  bool angle_variance_;
 };
 
 class EndpointDescriptor final : public Descriptor {

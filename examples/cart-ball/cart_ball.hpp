@@ -49,7 +49,13 @@ class CartBall final : public qd::Environment {
   }
 
   // Observation: cart x, y, ball x, y, vx, vy, episode phase. Action: cart velocity (x, y).
-  qd::EnvironmentInfo info() const override { return {7, 2, steps_, "cart-ball-landing"}; }
+  // Fitness: the ball's highest point (metrics.csv's max_fitness and mean_fitness; no lower bound is
+  // declared, so qd_score stays empty unless the experiment file gives [experiment] fitness_lower_bound).
+  qd::EnvironmentInfo info() const override {
+    qd::EnvironmentInfo info{7, 2, steps_, "cart-ball-landing"};
+    info.has_fitness = true;
+    return info;
+  }
 
   // Stateless and const: every episode builds its own world, so any worker can run any policy.
   void rollout(const qd::RolloutBatch& batch, qd::Trace* traces) const override {

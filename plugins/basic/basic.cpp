@@ -37,6 +37,10 @@ void UniformSampler::mutate(const Parents&, std::size_t count, MutateContext& ct
 
 GlorotSampler::GlorotSampler(const Config&, const BuildContext& ctx) {
   QD_CHECK(ctx.policy != nullptr, "glorot needs the policy shape");
+  if (ctx.policy->is_direct())
+    throw InputError(
+        "glorot draws the layers of a policy network, but the environment evaluates plain parameter vectors "
+        "(it has no network); use \"uniform\"");
   shape_ = *ctx.policy;
   for (int l = 0; l < shape_.layers(); ++l)
     stds_.push_back(std::sqrt(1.0 / static_cast<double>(shape_.layer_inputs(l) + 1 + shape_.layer_outputs(l))));

@@ -5,7 +5,8 @@ The expected values are written here independently of the files: the budgets of 
 (Striker 10^6 evaluations after loop 0, Walker and Kicker 2 x 10^6), the paper's table of PoMS
 hyperparameters (HD / LD / sigma per environment, mix-scale included), the observation variants of
 the paper's text, the reference code's seeds (one per config) and the algorithm of every file. Every directory
-of experiments/ except smoke/ and reference/ (reference_table.py) must be one of the six variants, with the eight algorithm files.
+of experiments/ except smoke/, reference/ (reference_table.py) and the CMA-ME benchmark's lp-sphere/ and
+lp-rastrigin/ must be one of the six variants, with the eight algorithm files.
 
   paper_table.py EXPERIMENTS_DIR     check the files; exit 1 listing every mismatch
   paper_table.py --self-test DIR     check that a copy of DIR with one wrong value fails, per value
@@ -33,6 +34,9 @@ SEEDS = {"poms": (500, 100, 200), "poms-no-jacobian": (300, 100, 300), "poms-pca
          "dde": (400, 500, 200), "iso": (300, 200, 500), "iso-line-dd": (400, 400, 400),
          "ps-uniform": (100, 400, 400), "ps-glorot": (300, 200, 100)}
 ENV_INDEX = {"striker": 0, "bipedal-walker": 1, "bipedal-kicker": 2}
+# Directories of experiments/ that are not the paper's text: the smoke runs, the reference set
+# (reference_table.py) and the CMA-ME benchmark.
+NOT_PAPER_DIRS = {"smoke", "reference", "lp-sphere", "lp-rastrigin"}
 
 
 def load(path, depth=0):
@@ -72,7 +76,7 @@ def expected_algorithm(alg, hd, ld, sigma):
 def check(root):
     errors = []
     root = Path(root)
-    dirs = sorted(d.name for d in root.iterdir() if d.is_dir() and d.name not in ("smoke", "reference"))
+    dirs = sorted(d.name for d in root.iterdir() if d.is_dir() and d.name not in NOT_PAPER_DIRS)
     for name in sorted(set(dirs) ^ set(VARIANTS)):
         errors.append(f"{name}: " + ("not a variant of the paper's table (add it here)" if name in dirs else
                                      "missing"))

@@ -13,6 +13,7 @@
 
 using namespace qd;
 using qd::runtime::Archive;
+using qd::runtime::Insertion;
 
 namespace {
 const double kP1[3] = {1, 2, 3}, kP2[3] = {4, 5, 6}, kD[2] = {0.5, -0.5};

@@ -79,11 +79,15 @@ class ScriptedMutator final : public Mutator {
     }
     out.mixing_ratio = 0.25;
   }
-  void feedback(const Feedback& fb) override { feedbacks.push_back(fb); }
+  void feedback(const Feedback& fb) override {
+    feedbacks.push_back(fb);
+    results.push_back(*fb.results);  // the loop reuses its vector
+  }
 
   std::deque<std::vector<double>> queue;
   std::vector<std::vector<std::int64_t>> seen_parents;
   std::vector<Feedback> feedbacks;
+  std::vector<std::vector<OffspringResult>> results;
   std::size_t latent_size = 0;
   bool latent_origin = false;
 
@@ -263,7 +267,54 @@ TEST(MapElitesLoop, CoinFlipDecidesOnlyOccupiedCells) {
   // The mutator heard the same, with one outcome per offspring.
   ASSERT_EQ(w.mutator->feedbacks.size(), 2u);
   EXPECT_EQ(w.mutator->feedbacks[0].replaced, replaced0);
-  EXPECT_EQ(w.mutator->feedbacks[0].outcomes->size(), 8u);
+  EXPECT_EQ(w.mutator->results[0].size(), 8u);
+}
+
+// The mutator hears, per offspring in batch order, what became of it and the fitness change it
+// brought to its cell (what CMA-ME's emitters rank by): a new cell (change = its fitness), an
+// improvement and a discarded offer (change against the occupant just before it, so two offers to
+// one cell in one batch see each other), an invalid evaluation; and, under the coin flip, a
+// replacement that is no improvement.
+TEST(MapElitesLoop, FeedbackTellsEachOffspringsOutcomeAndFitnessChange) {
+  World w(false, 5, 2);
+  w.s.insertion = "fitness";
+  World::queue(*w.initial, {{1, 5}, {2, 5}});
+  w.loop->run_loop(0);
+  World::queue(*w.mutator, {{1, 4}, {1, 6}, {1, 5.5}, {3, 2}, {-1, 9}});
+  World::queue(*w.mutator, std::vector<std::vector<double>>(5, {-1, 0}));
+  w.loop->run_loop(1);
+  ASSERT_EQ(w.mutator->results.size(), 2u);
+  const std::vector<OffspringResult>& r = w.mutator->results[0];
+  ASSERT_EQ(r.size(), 5u);
+  const std::vector<Outcome> outcomes = {Outcome::kDiscarded, Outcome::kImproved, Outcome::kDiscarded,
+                                         Outcome::kNewCell, Outcome::kInvalid};
+  const std::vector<double> changes = {-1.0, 1.0, -0.5, 2.0};
+  const std::vector<std::int64_t> cells = {1, 1, 1, 3, -1};
+  for (std::size_t k = 0; k < r.size(); ++k) {
+    EXPECT_EQ(r[k].outcome, outcomes[k]) << "offspring " << k << ": " << to_string(r[k].outcome);
+    EXPECT_EQ(r[k].cell, cells[k]) << k;
+    if (k < changes.size()) {
+      EXPECT_EQ(r[k].change(), changes[k]) << k;
+    }
+  }
+  EXPECT_EQ(r[1].previous, 5.0);
+  EXPECT_EQ(r[2].previous, 6.0) << "the second offer to cell 1 meets the first one's improvement";
+  EXPECT_TRUE(std::isnan(r[3].previous));
+  EXPECT_TRUE(std::isnan(r[4].fitness) && std::isnan(r[4].change()));
+  EXPECT_TRUE(r[1].entered() && r[3].entered() && !r[0].entered() && !r[4].entered());
+
+  World c(false, 2, 1);
+  c.s.replace_probability = 1.0;  // every occupied offer replaces, improving or not
+  World::queue(*c.initial, {{1, 5}});
+  c.loop->run_loop(0);
+  World::queue(*c.mutator, {{1, 3}, {1, 4}});
+  World::queue(*c.mutator, {{1, 3}, {1, 3}});
+  c.loop->run_loop(1);
+  EXPECT_EQ(c.mutator->results[0][0].outcome, Outcome::kReplaced);
+  EXPECT_EQ(c.mutator->results[0][0].change(), -2.0);
+  EXPECT_EQ(c.mutator->results[0][1].outcome, Outcome::kImproved);
+  EXPECT_EQ(c.mutator->results[1][1].outcome, Outcome::kReplaced) << "equal fitness is no improvement";
+  EXPECT_EQ(c.mutator->feedbacks[0].replaced, 2u);
 }
 
 // Over many occupied-cell offers the replacement rate is the configured probability (0.5):

@@ -16,6 +16,7 @@
 //    where higher is better. Fitness decides only under [experiment] insertion = "fitness" (an
 //    offspring replaces an occupant when its fitness is strictly higher) and is written to
 //    archive.csv's objective column; the paper's coin-flip insertion ignores it. It must be finite.
+//    info().has_fitness says whether it means anything (the QD metrics of metrics.csv need it).
 //  * Persistent worlds, the one exception to statelessness (info().persistent_worlds = N > 0): the
 //    environment keeps N worlds whose state carries from one episode to the next (to emulate a
 //    reference implementation that reuses one simulator per worker process). The core runs episode
@@ -35,6 +36,7 @@
 #include <qd/types.hpp>
 
 #include <cstdint>
+#include <limits>
 #include <ostream>
 #include <string>
 
@@ -46,6 +48,18 @@ struct EnvironmentInfo {
   int max_steps = 0;
   std::string default_descriptor;  // descriptor component used when the experiment names none
   int persistent_worlds = 0;       // 0: stateless (the contract above); N > 0: N persistent worlds
+  // Whether Trace::fitness is the task's objective. Without one (the PoMS paper's Box2D tasks), the
+  // QD metrics of metrics.csv (qd_score, max_fitness, mean_fitness) stay empty and
+  // [experiment] insertion = "fitness" is refused.
+  bool has_fitness = false;
+  // The lowest fitness the task can give: qd_score = sum over the elites of (fitness - this bound),
+  // comparable across runs. NaN = not declared ([experiment] fitness_lower_bound may give it;
+  // without either, qd_score stays empty while max_fitness and mean_fitness are written).
+  double fitness_lower_bound = std::numeric_limits<double>::quiet_NaN();
+  // > 0: the environment evaluates plain parameter vectors of this length (a direct encoding, as the
+  // standard QD benchmarks do) instead of policy networks; observation_size, action_size and
+  // [policy] do not apply, and batch.shape->is_direct() is true.
+  int parameters = 0;
 };
 
 // A batch of rollouts: rows [begin, end) of `params`, each with its own episode seed.

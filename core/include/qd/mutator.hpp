@@ -16,7 +16,9 @@
 //    recn_error = ‖θ′ − Dec(z′)‖ (docs/reference-behaviour.md). It appends one value per
 //    metric_names() entry to out.metrics. Another shape is an error that ends the run.
 //  * Mutators whose uses_parents() is false (samplers: ps-uniform, ps-glorot) get no parents.
-//  * State that must survive a checkpoint (the DDE bandit) goes through save()/load().
+//  * feedback() tells, per offspring in batch order, what the archive did with it and the fitness
+//    it brought (Feedback::results): what adaptive operators such as CMA-ME's emitters rank by.
+//  * State that must survive a checkpoint (the DDE bandit, CMA-ES) goes through save()/load().
 #pragma once
 
 #include <qd/archive.hpp>
@@ -41,9 +43,6 @@ struct Parents {
   Vector recn_error;  // stored reconstruction errors (0 without a model)
   std::vector<std::int64_t> cells;
 };
-
-// What the archive did with one offspring.
-enum class Insertion : std::uint8_t { kAdded = 0, kReplaced = 1, kRejected = 2, kInvalid = 3 };
 
 struct QD_EXPORT Offspring {
   Matrix theta;                          // count × P
@@ -73,16 +72,44 @@ struct MutateContext {
   const ArchiveView* archive = nullptr;            // never null
 };
 
+// What became of one offspring.
+enum class Outcome : std::uint8_t {
+  kNewCell = 0,    // it filled an empty cell
+  kImproved = 1,   // it replaced an occupant of strictly lower fitness
+  kReplaced = 2,   // it replaced an occupant it is not fitter than (coin-flip insertion)
+  kDiscarded = 3,  // the occupant stayed
+  kInvalid = 4,    // a failed evaluation or an undescribable trace: never offered
+};
+QD_EXPORT const char* to_string(Outcome outcome) noexcept;
+
+struct OffspringResult {
+  Outcome outcome = Outcome::kInvalid;
+  std::int64_t cell = -1;                                     // -1 when invalid
+  double fitness = std::numeric_limits<double>::quiet_NaN();  // the offspring's; NaN when invalid
+  // The occupant's fitness just before this offspring was offered (insertion is sequential in
+  // batch order); NaN when the cell was empty or the offspring invalid.
+  double previous = std::numeric_limits<double>::quiet_NaN();
+
+  // Whether it is in the archive now (new cell, improved or replaced).
+  bool entered() const noexcept {
+    return outcome == Outcome::kNewCell || outcome == Outcome::kImproved || outcome == Outcome::kReplaced;
+  }
+  // The fitness change it brings to its cell: fitness - previous for an occupied cell (negative when
+  // it was not fitter), the fitness itself for a new cell (as the CMA-ME paper and pyribs rank), NaN
+  // when invalid.
+  double change() const noexcept { return outcome == Outcome::kNewCell ? fitness : fitness - previous; }
+};
+
 // What happened to the last batch, for adaptive operators.
 struct Feedback {
   int loop = 0;
   int iteration = 0;
   std::size_t offspring = 0;
-  std::size_t added = 0;     // new cells
-  std::size_t replaced = 0;  // occupants replaced
-  std::size_t rejected = 0;
-  std::size_t invalid = 0;                           // failed evaluations or undescribable traces
-  const std::vector<Insertion>* outcomes = nullptr;  // one per offspring, in order
+  std::size_t added = 0;                                  // new cells
+  std::size_t replaced = 0;                               // occupants replaced (improved or not)
+  std::size_t rejected = 0;                               // discarded
+  std::size_t invalid = 0;                                // failed evaluations or undescribable traces
+  const std::vector<OffspringResult>* results = nullptr;  // one per offspring, in batch order
 };
 
 class QD_EXPORT Mutator : public Component {

@@ -43,7 +43,10 @@ namespace qd {
 // 5: Representation::estimate_fit_seconds (a new virtual member).
 // 6: environments with persistent worlds (EnvironmentInfo::persistent_worlds, RolloutBatch::world,
 //    Environment::save/load); CHANGELOG.md.
-// 7: GridSpec::labels (names of a descriptor's bins, written to grid.toml).
+// 7: GridSpec::labels (names of a descriptor's bins, written to grid.toml); mutator feedback per
+//    offspring (Feedback::results, was `outcomes`); EnvironmentInfo declares fitness and direct
+//    parameter vectors; GridSpec::centroids (CVT); BuildContext::batch, wrapped, stored_grid;
+//    ComponentInfo::flags (descriptor adapters). CHANGELOG.md has the migrations.
 inline constexpr std::uint32_t kPluginAbiVersion = 7;
 
 enum class Kind : std::uint32_t { kEnvironment = 1, kDescriptor = 2, kRepresentation = 3, kMutator = 4 };
@@ -53,6 +56,9 @@ QD_EXPORT const char* to_string(Kind kind) noexcept;
 // that keeps the library loaded. May throw qd::ConfigError (or anything: the host reports it).
 using CreateFn = Component* (*)(const Config&, const BuildContext&);
 
+// ComponentInfo::flags.
+inline constexpr std::uint32_t kWrapsDescriptor = 1u;  // a descriptor adapter: wraps another descriptor
+
 struct ComponentInfo {
   Kind kind;
   const char* name;
@@ -60,6 +66,7 @@ struct ComponentInfo {
   const ParamSpec* params;
   std::uint32_t param_count;
   CreateFn create;
+  std::uint32_t flags;  // kWrapsDescriptor
 };
 
 // Layout frozen for a given abi_version; abi_version must stay the first field.
@@ -82,12 +89,23 @@ ComponentInfo component(Kind kind, const char* name, const char* summary, const 
           summary,
           params,
           static_cast<std::uint32_t>(N),
-          [](const Config& c, const BuildContext& b) -> Component* { return new T(c, b); }};
+          [](const Config& c, const BuildContext& b) -> Component* { return new T(c, b); },
+          0u};
 }
 template <class T>
 ComponentInfo component(Kind kind, const char* name, const char* summary) {
   return {kind,    name, summary,
-          nullptr, 0u,   [](const Config& c, const BuildContext& b) -> Component* { return new T(c, b); }};
+          nullptr, 0u,   [](const Config& c, const BuildContext& b) -> Component* { return new T(c, b); },
+          0u};
+}
+// A descriptor that wraps another ([descriptor] type = NAME, the wrapped one in [descriptor.wraps],
+// by default the environment's own): the core builds the wrapped descriptor first and hands it over
+// in BuildContext::wrapped.
+template <class T, std::size_t N>
+ComponentInfo descriptor_adapter(const char* name, const char* summary, const ParamSpec (&params)[N]) {
+  ComponentInfo info = component<T>(Kind::kDescriptor, name, summary, params);
+  info.flags = kWrapsDescriptor;
+  return info;
 }
 
 }  // namespace qd

@@ -20,11 +20,15 @@ class QD_EXPORT PolicyShape {
  public:
   PolicyShape() = default;
   PolicyShape(int inputs, std::vector<int> hidden, int outputs);
+  // A plain vector of `parameters` values and no network, for environments that evaluate parameter
+  // vectors directly (EnvironmentInfo::parameters): layers() is 0, inputs() and outputs() are 0.
+  static PolicyShape direct(std::size_t parameters);
+  bool is_direct() const noexcept { return sizes_.empty() && !offsets_.empty(); }
 
   int inputs() const noexcept { return sizes_.empty() ? 0 : sizes_.front(); }
   int outputs() const noexcept { return sizes_.empty() ? 0 : sizes_.back(); }
   const std::vector<int>& hidden() const noexcept { return hidden_; }
-  int layers() const noexcept { return static_cast<int>(sizes_.size()) - 1; }
+  int layers() const noexcept { return sizes_.empty() ? 0 : static_cast<int>(sizes_.size()) - 1; }
   int layer_inputs(int l) const noexcept { return sizes_[static_cast<std::size_t>(l)]; }
   int layer_outputs(int l) const noexcept { return sizes_[static_cast<std::size_t>(l) + 1]; }
   // Offset of layer l's (n_in + 1) × n_out block in θ.
@@ -37,7 +41,8 @@ class QD_EXPORT PolicyShape {
   std::vector<std::size_t> offsets_;  // layers + 1 entries; last = P
 };
 
-// One policy loaded for inference. Not thread-safe; make one per worker (cheap).
+// One policy loaded for inference. Not thread-safe; make one per worker (cheap). A direct shape has
+// no network to load.
 class QD_EXPORT Policy {
  public:
   explicit Policy(const PolicyShape& shape);

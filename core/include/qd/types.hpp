@@ -77,15 +77,25 @@ struct Trace {
 // The behaviour grid a descriptor maps traces into. A cell index is row-major over `shape` (the
 // last dimension varies fastest), so cells == the product of `shape`; every run writes this to
 // grid.toml, from which plots draw the archive without knowing the descriptor.
+//
+// A centroidal Voronoi tessellation (CVT) instead of a grid has `centroids`: cells x dims() values,
+// row-major, and a cell is the index of the nearest centroid; `shape` is then {cells}. The run
+// writes them to centroids.csv (grid.toml names the file).
 struct GridSpec {
-  std::vector<std::int64_t> shape;   // bins per dimension
-  std::vector<std::string> names;    // one per dimension, for CSV headers and plots
+  std::vector<std::int64_t> shape;   // bins per dimension ({cells} for a CVT)
+  std::vector<std::string> names;    // one per descriptor dimension, for CSV headers and plots
   std::vector<double> lower, upper;  // range of the continuous values per dimension
   std::int64_t cells = 0;            // total number of cells
+  std::vector<double> centroids{};   // CVT only: cells x dims(), row-major; empty for a grid
   // Optional names of the bins, for plots (the Striker's wall pairs): empty, or one list per
-  // dimension, each empty (bins are numbered) or with one name per bin. Its initializer keeps a
-  // grid built as {shape, names, lower, upper, cells} free of missing-initializer warnings.
+  // dimension, each empty (bins are numbered) or with one name per bin (grids only, not CVT). Its
+  // initializer keeps a grid built as {shape, names, lower, upper, cells} free of
+  // missing-initializer warnings.
   std::vector<std::vector<std::string>> labels = {};
+
+  // Continuous values per trace (what describe() writes per trace).
+  std::size_t dims() const noexcept { return names.size(); }
+  bool is_cvt() const noexcept { return !centroids.empty(); }
 };
 
 }  // namespace qd

@@ -3,6 +3,8 @@
 #include <qd/errors.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <numeric>
 #include <string>
 
@@ -107,6 +109,21 @@ void Archive::restore(std::size_t slot, std::int64_t cell, const double* params,
     dirty_[slot] = 0;
     dirty_slots_.pop_back();
   }
+}
+
+QdMetrics qd_metrics(const ArchiveView& a, bool has_fitness, double lower_bound) {
+  constexpr double nan = std::numeric_limits<double>::quiet_NaN();
+  if (!has_fitness) return {nan, nan, nan};
+  const std::size_t n = a.size();
+  double score = 0.0, sum = 0.0, best = -std::numeric_limits<double>::infinity();
+  for (std::size_t slot = 0; slot < n; ++slot) {
+    const double f = a.fitness(slot);
+    score += f - lower_bound;
+    sum += f;
+    best = std::max(best, f);
+  }
+  if (n == 0) return {std::isnan(lower_bound) ? nan : 0.0, nan, nan};
+  return {std::isnan(lower_bound) ? nan : score, best, sum / static_cast<double>(n)};
 }
 
 }  // namespace qd::runtime

@@ -15,6 +15,9 @@
 
 namespace qd::runtime {
 
+// What the archive did with one offspring (the loop refines it into a qd::Outcome).
+enum class Insertion : std::uint8_t { kAdded = 0, kReplaced = 1, kRejected = 2 };
+
 class Archive final : public ArchiveView {
  public:
   Archive(std::int64_t cells, std::size_t param_count, std::size_t descriptor_dims);
@@ -62,5 +65,13 @@ class Archive final : public ArchiveView {
   std::vector<std::uint8_t> dirty_;  // per slot
   std::vector<std::size_t> dirty_slots_;
 };
+
+// The QD metrics of an archive, each NaN where it does not apply: without a task fitness all three;
+// qd_score also without a lower bound. qd_score = sum over the elites of (fitness - lower_bound), in
+// slot order; max and mean over the elites (NaN for an empty archive).
+struct QdMetrics {
+  double qd_score, max_fitness, mean_fitness;
+};
+QdMetrics qd_metrics(const ArchiveView& archive, bool has_fitness, double lower_bound);
 
 }  // namespace qd::runtime

@@ -1,14 +1,43 @@
 #include "runtime/components.hpp"
 
+#include "runtime/checkpoint.hpp"
+#include "runtime/csv.hpp"
+
 #include <qd/errors.hpp>
 
+#include <toml++/toml.h>
+
+#include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <sstream>
 
 namespace qd::runtime {
+namespace fs = std::filesystem;
+
+std::string centroids_csv(const GridSpec& g) {
+  const std::size_t dims = g.dims();
+  std::string out = "centroid";
+  for (const std::string& name : g.names) out += "," + name;
+  out += '\n';
+  for (std::size_t c = 0; dims > 0 && c < g.centroids.size() / dims; ++c) {
+    append_int(out, static_cast<std::int64_t>(c));
+    for (std::size_t d = 0; d < dims; ++d) {
+      out += ',';
+      append_number(out, g.centroids[c * dims + d]);
+    }
+    out += '\n';
+  }
+  return out;
+}
 
 std::string grid_toml(const GridSpec& g) {
-  std::string out = "# The behaviour grid: a cell index is row-major over shape (the last dimension fastest).\n";
+  std::string out =
+      g.is_cvt() ? "# The behaviour space: a centroidal Voronoi tessellation. A cell is the index of the nearest\n"
+                   "# centroid (Euclidean, in the descriptor's values); the centroids are in `centroids`, one row\n"
+                   "# per cell. shape = [cells].\n"
+                 : "# The behaviour grid: a cell index is row-major over shape (the last dimension fastest).\n";
+  out += std::string("kind = \"") + (g.is_cvt() ? "cvt" : "grid") + "\"\n";
   out += "cells = " + std::to_string(g.cells) + "\nshape = [";
   for (std::size_t d = 0; d < g.shape.size(); ++d) out += (d ? ", " : "") + std::to_string(g.shape[d]);
   out += "]\nnames = [";
@@ -34,7 +63,61 @@ std::string grid_toml(const GridSpec& g) {
     }
     out += "]\n";
   }
+  if (g.is_cvt()) {
+    const std::string csv = centroids_csv(g);
+    char crc[16];
+    std::snprintf(crc, sizeof(crc), "%08x", crc32c(csv.data(), csv.size()));
+    out += "centroids = \"centroids.csv\"\ncentroids_crc32c = \"" + std::string(crc) + "\"\n";
+  }
   return out;
+}
+
+bool read_stored_grid(const fs::path& run_dir, GridSpec& g) {
+  const fs::path file = run_dir / "grid.toml";
+  std::error_code ec;
+  if (!fs::exists(file, ec)) return false;
+  toml::table t;
+  try {
+    t = toml::parse_file(file.string());
+  } catch (const toml::parse_error& e) {
+    throw StateError(file.string() + " is not valid TOML: " + std::string(e.description()));
+  }
+  g = GridSpec{};
+  g.cells = t["cells"].value_or(std::int64_t{0});
+  auto list = [&](const char* key, auto push) {
+    if (const toml::array* a = t[key].as_array())
+      for (const auto& x : *a) push(x);
+  };
+  list("shape", [&](const toml::node& x) { g.shape.push_back(x.value_or(std::int64_t{0})); });
+  list("names", [&](const toml::node& x) { g.names.push_back(x.value_or(std::string())); });
+  list("lower", [&](const toml::node& x) { g.lower.push_back(x.value_or(0.0)); });
+  list("upper", [&](const toml::node& x) { g.upper.push_back(x.value_or(0.0)); });
+  if (t["kind"].value_or(std::string("grid")) != "cvt") return true;
+
+  const fs::path csv_file = run_dir / t["centroids"].value_or(std::string("centroids.csv"));
+  std::ifstream in(csv_file, std::ios::binary);
+  if (!in) throw StateError(csv_file.string() + " is missing (grid.toml names it: the run's CVT centroids)");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string csv = ss.str();
+  char crc[16];
+  std::snprintf(crc, sizeof(crc), "%08x", crc32c(csv.data(), csv.size()));
+  if (t["centroids_crc32c"].value_or(std::string()) != crc)
+    throw StateError(csv_file.string() + " does not match the checksum grid.toml records for it (edited or damaged)");
+  std::istringstream lines(csv);
+  std::string line;
+  std::getline(lines, line);  // header
+  const std::size_t dims = g.dims();
+  while (std::getline(lines, line)) {
+    std::istringstream row(line);
+    std::string field;
+    std::getline(row, field, ',');  // centroid index
+    for (std::size_t d = 0; d < dims && std::getline(row, field, ','); ++d) g.centroids.push_back(std::stod(field));
+  }
+  if (dims == 0 || g.centroids.size() != static_cast<std::size_t>(g.cells) * dims)
+    throw StateError(csv_file.string() + " holds " + std::to_string(g.centroids.size()) + " values for " +
+                     std::to_string(g.cells) + " cells of " + std::to_string(dims) + " dimensions");
+  return true;
 }
 
 std::string toml_string(const std::string& s) {
@@ -58,10 +141,23 @@ std::string toml_string(const std::string& s) {
 }
 
 void check_grid(const GridSpec& g, const std::string& who) {
-  const std::size_t dims = g.shape.size();
-  if (g.cells <= 0 || dims == 0) throw PluginError(who + " declares an empty grid");
-  if (g.names.size() != dims || g.lower.size() != dims || g.upper.size() != dims)
-    throw PluginError(who + " declares a grid of " + std::to_string(dims) +
+  const std::size_t dims = g.dims();
+  if (g.cells <= 0 || dims == 0 || g.shape.empty()) throw PluginError(who + " declares an empty grid");
+  if (g.lower.size() != dims || g.upper.size() != dims)
+    throw PluginError(who + " declares " + std::to_string(dims) + " dimensions with another number of bounds");
+  if (g.is_cvt()) {
+    if (g.shape.size() != 1 || g.shape[0] != g.cells)
+      throw PluginError(who + " declares a CVT of " + std::to_string(g.cells) + " cells whose shape is not [cells]");
+    if (g.centroids.size() != static_cast<std::size_t>(g.cells) * dims)
+      throw PluginError(who + " declares " + std::to_string(g.cells) + " cells of " + std::to_string(dims) +
+                        " dimensions but " + std::to_string(g.centroids.size()) + " centroid values");
+    for (double v : g.centroids)
+      if (!std::isfinite(v)) throw PluginError(who + " declares a non-finite centroid");
+    if (!g.labels.empty()) throw PluginError(who + " declares bin labels for a CVT, whose cells are no bins");
+    return;
+  }
+  if (g.shape.size() != dims)
+    throw PluginError(who + " declares a grid of " + std::to_string(g.shape.size()) +
                       " dimensions with another number of names or bounds");
   std::int64_t product = 1;
   for (std::int64_t bins : g.shape) {
@@ -106,27 +202,64 @@ Owned<T> create(const Registry& registry, const ComponentConfig& cc, const Build
 // A world's state lives in memory and in every checkpoint: far more than any emulated process count.
 constexpr int kMaxPersistentWorlds = 1 << 16;
 
-Components build_components(Experiment& ex, const Registry& registry) {
+Components build_components(Experiment& ex, const Registry& registry, const GridSpec* stored_grid) {
   Components c;
   BuildContext ctx;
   ctx.seed = ex.settings.seed;
   c.environment = create<Environment>(registry, ex.environment, ctx);
   const EnvironmentInfo info = c.environment->info();
-  if (info.observation_size <= 0 || info.action_size <= 0)
-    throw PluginError("environment '" + ex.environment.type + "' reports no observation or action size");
+  const std::string env_name = "environment '" + ex.environment.type + "'";
+  if (info.parameters < 0) throw PluginError(env_name + " reports a negative parameter count");
+  if (info.parameters > 0) {
+    c.shape = PolicyShape::direct(static_cast<std::size_t>(info.parameters));
+  } else {
+    if (info.observation_size <= 0 || info.action_size <= 0)
+      throw PluginError(env_name + " reports no observation or action size");
+    c.shape = PolicyShape(info.observation_size, ex.settings.hidden, info.action_size);
+  }
   if (info.persistent_worlds < 0 || info.persistent_worlds > kMaxPersistentWorlds)
-    throw PluginError("environment '" + ex.environment.type + "' reports " + std::to_string(info.persistent_worlds) +
-                      " persistent worlds (0 to " + std::to_string(kMaxPersistentWorlds) + " allowed)");
-  c.shape = PolicyShape(info.observation_size, ex.settings.hidden, info.action_size);
+    throw PluginError(env_name + " reports " + std::to_string(info.persistent_worlds) + " persistent worlds (0 to " +
+                      std::to_string(kMaxPersistentWorlds) + " allowed)");
   ctx.policy = &c.shape;
+
+  // The task's fitness, for the QD metrics and fitness insertion.
+  c.has_fitness = info.has_fitness;
+  c.fitness_lower_bound =
+      std::isnan(ex.settings.fitness_lower_bound) ? info.fitness_lower_bound : ex.settings.fitness_lower_bound;
+  if (!c.has_fitness && !std::isnan(ex.settings.fitness_lower_bound))
+    throw InputError("[experiment] fitness_lower_bound is set, but " + env_name +
+                     " declares no fitness (its README says what its traces report)");
+  if (!c.has_fitness && ex.settings.insertion == "fitness")
+    throw InputError("[experiment] insertion = \"fitness\" needs a task fitness, but " + env_name +
+                     " declares none; use insertion = \"coin-flip\"");
+  if (c.has_fitness && std::isinf(c.fitness_lower_bound))
+    throw PluginError(env_name + " declares an infinite fitness lower bound");
 
   if (!ex.descriptor.entry) {
     if (info.default_descriptor.empty())
-      throw InputError("environment '" + ex.environment.type +
-                       "' has no default descriptor; add [descriptor] type = ...");
+      throw InputError(env_name + " has no default descriptor; add [descriptor] type = ...");
     resolve_default_component(ex, ex.descriptor, registry.require(info.default_descriptor, Kind::kDescriptor));
   }
+  if (ex.descriptor.entry->info->flags & kWrapsDescriptor) {
+    // A descriptor adapter: the descriptor it wraps first (by default the environment's own).
+    if (!ex.wrapped.entry) {
+      if (info.default_descriptor.empty())
+        throw InputError(env_name + " has no default descriptor for " + ex.descriptor.type + " to wrap; add [" +
+                         ex.wrapped.table + "] type = ...");
+      const ComponentEntry& entry = registry.require(info.default_descriptor, Kind::kDescriptor);
+      if (entry.info->flags & kWrapsDescriptor)
+        throw InputError(env_name + "'s default descriptor '" + info.default_descriptor +
+                         "' wraps a descriptor itself; name the one to wrap in [" + ex.wrapped.table + "]");
+      resolve_default_component(ex, ex.wrapped, entry);
+    }
+    c.wrapped = create<Descriptor>(registry, ex.wrapped, ctx);
+    check_grid(c.wrapped->grid(), "descriptor '" + ex.wrapped.type + "' (" + ex.wrapped.entry->plugin->path + ")");
+    ctx.wrapped = c.wrapped.get();
+  }
+  ctx.stored_grid = stored_grid;
   c.descriptor = create<Descriptor>(registry, ex.descriptor, ctx);
+  ctx.wrapped = nullptr;
+  ctx.stored_grid = nullptr;
   c.grid = c.descriptor->grid();
   check_grid(c.grid, "descriptor '" + ex.descriptor.type + "' (" + ex.descriptor.entry->plugin->path + ")");
 
@@ -137,6 +270,7 @@ Components build_components(Experiment& ex, const Registry& registry) {
                                     std::to_string(latent) + " is larger than the policy's parameter count " +
                                     std::to_string(c.shape.param_count()));
   ctx.latent_size = latent;
+  ctx.batch = ex.settings.batch;
   c.mutator = create<Mutator>(registry, ex.mutator, ctx);
   c.initial = create<Mutator>(registry, ex.initial, ctx);
   if (c.initial->uses_parents())
@@ -160,7 +294,9 @@ Components build_components(Experiment& ex, const Registry& registry) {
   c.mutator_label = label(ex.mutator, "mutator");
   c.initial_label = label(ex.initial, "initial sampler");
 
-  for (const ComponentConfig* cc : {&ex.environment, &ex.descriptor, &ex.representation, &ex.mutator, &ex.initial}) {
+  for (const ComponentConfig* cc :
+       {&ex.environment, &ex.wrapped, &ex.descriptor, &ex.representation, &ex.mutator, &ex.initial}) {
+    if (!cc->entry) continue;  // no descriptor adapter: nothing wrapped
     const PluginInfo& pi = *cc->entry->plugin->info;
     c.provenance.push_back("{ table = " + toml_string(cc->table) + ", component = " + toml_string(cc->type) +
                            ", plugin = " + toml_string(pi.plugin_name) + ", version = " +

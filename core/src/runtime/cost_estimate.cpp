@@ -60,7 +60,7 @@ class SilentObserver final : public LoopObserver {
 
 EpisodePilot run_episode_pilot(const ExperimentSettings& settings, Components& c, double offspring_sigma) {
   TimedEvaluator evaluator(settings, c);
-  Archive archive(c.grid.cells, c.shape.param_count(), c.grid.shape.size());
+  Archive archive(c.grid.cells, c.shape.param_count(), c.grid.dims());
   Dataset dataset(c.shape.param_count());
   SilentObserver observer;
   MapElites loop(settings, c, evaluator, archive, dataset, observer, "");

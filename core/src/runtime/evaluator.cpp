@@ -178,7 +178,7 @@ void guarded_describe(const Descriptor& desc, const std::string& label, const Tr
 
 RowEvaluator::RowEvaluator(const Environment& env, const Descriptor& desc, const PolicyShape& shape,
                            PluginLabels labels)
-    : env_(env), desc_(desc), shape_(shape), labels_(std::move(labels)), dims_(desc.grid().shape.size()) {}
+    : env_(env), desc_(desc), shape_(shape), labels_(std::move(labels)), dims_(desc.grid().dims()) {}
 
 void RowEvaluator::run(const double* params, const std::uint64_t* seeds, std::size_t rows, double* records,
                        std::size_t first_row, std::atomic<std::uint64_t>* current) {
@@ -221,7 +221,7 @@ ThreadEvaluator::ThreadEvaluator(const Environment& env, const Descriptor& desc,
       desc_(desc),
       shape_(shape),
       labels_(std::move(labels)),
-      dims_(desc.grid().shape.size()),
+      dims_(desc.grid().dims()),
       worlds_(persistent_worlds),
       pool_(workers) {}
 

@@ -322,6 +322,9 @@ const ParamSpec kExperimentParams[] = {
                  "occupied cell: coin-flip = replace with replace_probability (reference); fitness = replace if "
                  "strictly fitter"),
     param_float("replace_probability", "0.5", 0.0, 1.0, "replacement probability of the coin-flip rule"),
+    param_float("fitness_lower_bound", "nan", -kMaxInt, kMaxInt,
+                "lowest fitness of the task, for metrics.csv's qd_score = sum over elites of (fitness - bound); nan = "
+                "the environment's own (if it declares one)"),
     param_string("dataset_order", "\"reference\"", "reference|insertion",
                  "order of loop-0 dataset entries: reference = descending cell index (np.unique order), insertion = "
                  "first found first"),
@@ -409,7 +412,8 @@ void take_value(const toml::node& n, const ParamSpec& s, const std::string& path
     case ParamType::kFloat: {
       if (!n.is_number()) type_error();
       const double v = n.value<double>().value();
-      check_number(v, n);
+      // A float whose default is nan ("not set") takes nan back from a resolved config.toml.
+      if (!(std::isnan(v) && std::string(s.default_value) == "nan")) check_number(v, n);
       cfg.set_float(s.key, v, where);
       break;
     }
@@ -691,6 +695,7 @@ Experiment resolve(const Document& doc, const Registry& registry) {
   s.initial_samples = static_cast<int>(e.get_int("initial_samples"));
   s.insertion = e.get_string("insertion");
   s.replace_probability = e.get_float("replace_probability");
+  s.fitness_lower_bound = e.get_float("fitness_lower_bound");
   s.dataset_order = e.get_string("dataset_order");
   for (auto h : p.get_int_list("hidden")) s.hidden.push_back(static_cast<int>(h));
   s.output_dir = o.get_string("dir");
@@ -782,11 +787,45 @@ Experiment resolve(const Document& doc, const Registry& registry) {
                            (type_node ? location(*type_node) : std::string("default")) + ") replaces " + replaced +
                            ": dropped " + dropped + ", which " + cc->type + " does not declare");
     }
+    const bool adapter = (info.flags & kWrapsDescriptor) != 0;
+    if (adapter) skip.push_back("wraps");
     cc->config = validate_table(t, table, info.params, info.param_count,
                                 "component '" + cc->type + "' (" + cc->entry->plugin->path + ")", skip);
     toml::table out;
     out.insert_or_assign("type", cc->type);
     put_config(out, cc->config, info.params, info.param_count);
+    // A descriptor adapter's [descriptor.wraps]: the descriptor it wraps, a component table of its
+    // own (the environment's default descriptor, filled in by build_components, when absent).
+    if (adapter) {
+      ex.wrapped.table = table + ".wraps";
+      const toml::node* wraps = t ? t->get("wraps") : nullptr;
+      if (wraps && !wraps->is_table())
+        fail_at(*wraps, table + ".wraps must be a table ([" + table + ".wraps] with a type)");
+      const toml::table* wt = wraps ? wraps->as_table() : nullptr;
+      const toml::node* wtype = wt ? wt->get("type") : nullptr;
+      if (wt && (!wtype || !wtype->is_string()))
+        fail_at(*wraps, "[" + ex.wrapped.table + "] needs type = \"<descriptor name>\" (the descriptor that " +
+                            cc->type + " wraps), or leave it out for the environment's own");
+      if (wtype) {
+        ex.wrapped.type = wtype->as_string()->get();
+        try {
+          ex.wrapped.entry = &registry.require(ex.wrapped.type, Kind::kDescriptor);
+        } catch (const InputError& err) {
+          throw InputError(location(*wtype) + ": " + ex.wrapped.table + ".type: " + err.what());
+        }
+        const ComponentInfo& winfo = *ex.wrapped.entry->info;
+        if (winfo.flags & kWrapsDescriptor)
+          fail_at(*wtype, "[" + ex.wrapped.table + "] type = \"" + ex.wrapped.type +
+                              "\" wraps a descriptor itself; adapters do not nest");
+        ex.wrapped.config =
+            validate_table(wt, ex.wrapped.table, winfo.params, winfo.param_count,
+                           "component '" + ex.wrapped.type + "' (" + ex.wrapped.entry->plugin->path + ")", {"type"});
+        toml::table wout;
+        wout.insert_or_assign("type", ex.wrapped.type);
+        put_config(wout, ex.wrapped.config, winfo.params, winfo.param_count);
+        out.insert_or_assign("wraps", std::move(wout));
+      }
+    }
     resolved.insert_or_assign(table, std::move(out));
   }
   // The user's plugin directories this run searches, recorded so that --resume, --replay and
@@ -815,8 +854,16 @@ void resolve_default_component(Experiment& ex, ComponentConfig& cc, const Compon
   toml::table out;
   out.insert_or_assign("type", cc.type);
   put_config(out, cc.config, entry.info->params, entry.info->param_count);
+  // A dotted table name ("descriptor.wraps") nests: [descriptor.wraps] after [descriptor].
+  const std::size_t dot = cc.table.find('.');
   toml::table wrapper;
-  wrapper.insert_or_assign(cc.table, std::move(out));
+  if (dot == std::string::npos) {
+    wrapper.insert_or_assign(cc.table, std::move(out));
+  } else {
+    toml::table parent;
+    parent.insert_or_assign(cc.table.substr(dot + 1), std::move(out));
+    wrapper.insert_or_assign(cc.table.substr(0, dot), std::move(parent));
+  }
   ex.resolved_toml += "\n" + toml_text(wrapper);
 }
 
@@ -851,7 +898,10 @@ std::string describe_table(const std::string& name, const Registry& registry) {
     if (name == "mutator") purpose = "the variation operator of loops n >= 1 (a mutator component)";
     if (name == "initial") purpose = "the loop-0 sampler (a mutator component that needs no parents)";
     if (name == "representation") purpose = "the latent model of the policy parameters (a representation component)";
-    if (name == "descriptor") purpose = "the behaviour descriptor (a descriptor component)";
+    if (name == "descriptor")
+      purpose =
+          "the behaviour descriptor (a descriptor component); a descriptor adapter such as \"cvt\" wraps the "
+          "descriptor of its sub-table [descriptor.wraps] (type and keys; default: the environment's own)";
     if (name == "environment") purpose = "the task (an environment component)";
     std::string dflt = ct.default_type == nullptr ? "required"
                        : *ct.default_type         ? "default \"" + std::string(ct.default_type) + "\""

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -36,7 +37,8 @@ struct ExperimentSettings {
   int initial_samples = 0;  // loop-0 samples
   std::string insertion;    // "coin-flip" | "fitness"
   double replace_probability = 0.5;
-  std::string dataset_order;  // "reference" | "insertion"
+  double fitness_lower_bound = std::numeric_limits<double>::quiet_NaN();  // NaN: the environment's
+  std::string dataset_order;                                              // "reference" | "insertion"
   std::vector<int> hidden;
   std::string output_dir;
   int snapshot_every = 0;
@@ -59,6 +61,9 @@ struct Experiment {
   std::filesystem::path file;  // the experiment file (empty when built in memory)
   ExperimentSettings settings;
   ComponentConfig environment, descriptor, representation, mutator, initial;
+  // [descriptor.wraps]: the descriptor a descriptor adapter (such as "cvt") wraps; table is set only
+  // for an adapter, and entry stays null until build_components fills in the environment's default.
+  ComponentConfig wrapped;
   std::string resolved_toml;              // every setting with defaults filled in
   std::vector<std::string> plugin_paths;  // [plugins] path, made absolute
   // One line each for the user (qdrun prints them as notes): keys dropped because an include or

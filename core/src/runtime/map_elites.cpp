@@ -118,7 +118,7 @@ void MapElites::iterate(int loop, int it) {
   fb.replaced = outcome.replaced;
   fb.rejected = outcome.rejected;
   fb.invalid = outcome.invalid;
-  fb.outcomes = &outcomes_;
+  fb.results = &results_;
   call_plugin(c_.mutator_label, "feedback()", [&] { c_.mutator->feedback(fb); });
   observer_.iteration_done(outcome);
 }
@@ -171,34 +171,37 @@ void MapElites::insert(int loop, int it, IterationOutcome& outcome) {
   const bool has_model = c_.representation->latent_size() > 0;
   Rng coin(s_.seed, Stream::kInsertion, static_cast<std::uint64_t>(loop), static_cast<std::uint64_t>(it));
   const std::size_t n = evaluated_.cells.size();
-  outcomes_.resize(n);
+  results_.assign(n, OffspringResult{});
   for (std::size_t k = 0; k < n; ++k) {
+    OffspringResult& r = results_[k];
     const std::int64_t cell = evaluated_.cells[k];
     if (cell < 0) {
-      outcomes_[k] = Insertion::kInvalid;
       ++outcome.invalid;
       continue;
     }
+    r.cell = cell;
+    r.fitness = evaluated_.fitness[k];
     bool replace = false;
     if (archive_.occupied(cell)) {
-      if (by_fitness)
-        replace = evaluated_.fitness[k] > archive_.fitness(static_cast<std::size_t>(archive_.slot_of(cell)));
-      else
-        replace = coin.uniform() < s_.replace_probability;
+      r.previous = archive_.fitness(static_cast<std::size_t>(archive_.slot_of(cell)));
+      replace = by_fitness ? r.fitness > r.previous : coin.uniform() < s_.replace_probability;
     }
     const auto row = static_cast<Eigen::Index>(k);
-    outcomes_[k] = archive_.offer(cell, offspring_.theta.row(row).data(), evaluated_.descriptors.row(row).data(),
-                                  evaluated_.fitness[k], has_model ? recn_[row] : 0.0, replace);
-    switch (outcomes_[k]) {
+    switch (archive_.offer(cell, offspring_.theta.row(row).data(), evaluated_.descriptors.row(row).data(), r.fitness,
+                           has_model ? recn_[row] : 0.0, replace)) {
       case Insertion::kAdded:
+        r.outcome = Outcome::kNewCell;
         ++outcome.added;
         new_cells_.push_back(cell);
         break;
       case Insertion::kReplaced:
+        r.outcome = r.fitness > r.previous ? Outcome::kImproved : Outcome::kReplaced;
         ++outcome.replaced;
         break;
-      default:
+      case Insertion::kRejected:
+        r.outcome = Outcome::kDiscarded;
         ++outcome.rejected;
+        break;
     }
   }
 }

@@ -88,7 +88,7 @@ class MapElites {
   Vector recn_;
   std::vector<std::uint64_t> seeds_;
   Evaluations evaluated_;
-  std::vector<Insertion> outcomes_;
+  std::vector<OffspringResult> results_;
   std::vector<std::int64_t> new_cells_;  // cells first filled in this loop, in order
 };
 

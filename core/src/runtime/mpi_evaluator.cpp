@@ -218,7 +218,7 @@ class MpiEvaluator final : public Evaluator {
  public:
   MpiEvaluator(const EvaluatorSpec& spec, const Environment& env, const Descriptor& desc, const PolicyShape& shape)
       : P_(shape.param_count()),
-        dims_(desc.grid().shape.size()),
+        dims_(desc.grid().dims()),
         width_(record_width(dims_)),
         timeout_(spec.timeout_seconds),
         rank_timeout_(spec.timeout_seconds > 0 ? 2 * spec.timeout_seconds + kRankGrace : 0),

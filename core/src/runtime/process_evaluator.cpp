@@ -69,7 +69,7 @@ ProcessEvaluator::ProcessEvaluator(const Environment& env, const Descriptor& des
                                    int workers, std::size_t capacity, double timeout_seconds, PluginLabels labels,
                                    std::string where)
     : P_(shape.param_count()),
-      dims_(desc.grid().shape.size()),
+      dims_(desc.grid().dims()),
       width_(record_width(dims_)),
       capacity_(std::max<std::size_t>(capacity, 1)),
       timeout_(timeout_seconds),

@@ -32,7 +32,7 @@ ReplayAllResult replay_all(const Run& run, int workers, const fs::path& csv) {
   const Components& c = run.components();
   const StoredElites elites = read_archive_solutions(run.directory() / "archive.csv", c.shape.param_count());
   const std::size_t n = elites.cells.size();
-  const std::size_t dims = c.grid.shape.size();
+  const std::size_t dims = c.grid.dims();
   // The evaluators return compact results, so the traces are rolled out here, on local threads.
   const std::vector<std::uint64_t> seeds(n, 0);
   std::vector<Trace> traces(n);

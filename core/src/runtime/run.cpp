@@ -83,6 +83,22 @@ void check_memory(const ExperimentSettings& s, const Components& c) {
                      " are available; lower experiment.batch or experiment.initial_samples");
 }
 
+// The components of the run in `dir`; a run that already has a checkpoint there is being opened
+// (resumed, replayed, inspected), and descriptors that compute their grid reuse the stored one.
+Components build_run_components(Experiment& ex, const Registry& registry, const fs::path& dir) {
+  GridSpec stored;
+  bool have = false;
+  if (CheckpointStore::exists(dir)) {
+    try {
+      have = read_stored_grid(dir, stored);
+    } catch (const StateError& e) {
+      throw InputError(dir.string() + ": cannot open the run: " + e.what() +
+                       "; restore the file, or delete the run directory and start again");
+    }
+  }
+  return build_components(ex, registry, have ? &stored : nullptr);
+}
+
 std::unique_ptr<Evaluator> make_run_evaluator(const Experiment& ex, const Components& c, const RunOptions& opt,
                                               const fs::path& dir) {
   const ExperimentSettings& s = ex.settings;
@@ -107,26 +123,32 @@ void tune_allocator() {
 Run::Run(Experiment experiment, const Registry& registry, RunOptions options)
     : ex_(std::move(experiment)),
       opt_(std::move(options)),
-      c_(build_components(ex_, registry)),
+      c_(build_run_components(ex_, registry, run_directory_of(ex_.settings, opt_))),
       evaluator_(make_run_evaluator(ex_, c_, opt_, run_directory_of(ex_.settings, opt_))),
-      archive_(c_.grid.cells, c_.shape.param_count(), c_.grid.shape.size()),
+      archive_(c_.grid.cells, c_.shape.param_count(), c_.grid.dims()),
       dataset_(c_.shape.param_count()),
       dir_(run_directory_of(ex_.settings, opt_)),
-      checkpoints_(dir_.path(), c_.shape.param_count(), c_.grid.shape.size()),
+      checkpoints_(dir_.path(), c_.shape.param_count(), c_.grid.dims()),
       loop_(ex_.settings, c_, *evaluator_, archive_, dataset_, *this, dir_.path().string()) {}
 
 Run::~Run() = default;
 
 void Run::create_directory() {
   std::string header =
-      "loop,iteration,evaluations,elites,coverage,mixing_ratio,added,replaced,invalid,wall_seconds,train_seconds";
+      "loop,iteration,evaluations,elites,coverage,qd_score,max_fitness,mean_fitness,mixing_ratio,added,replaced,"
+      "invalid,wall_seconds,train_seconds";
   for (const auto& n : c_.metric_names) header += "," + n;
   restarted_ = dir_.create(ex_.resolved_toml, header);
   if (opt_.on_start) opt_.on_start();
   dir_.set_status("running");
-  dir_.write("grid.toml", grid_toml(c_.grid));
+  write_grid();
   write_provenance();
   next_loop_ = 0;
+}
+
+void Run::write_grid() const {
+  if (c_.grid.is_cvt()) dir_.write("centroids.csv", centroids_csv(c_.grid));  // grid.toml records its CRC
+  dir_.write("grid.toml", grid_toml(c_.grid));
 }
 
 void Run::open_for_resume() {
@@ -144,7 +166,7 @@ void Run::open_for_resume() {
   load_checkpoint(true);
   if (opt_.on_start) opt_.on_start();
   dir_.write_config(ex_.resolved_toml);
-  dir_.write("grid.toml", grid_toml(c_.grid));
+  write_grid();
   dir_.set_status("running");
   write_provenance();
 }
@@ -168,12 +190,18 @@ void Run::load_checkpoint(bool resuming) {
     const CheckpointCounters& n = loaded.counters;
     if (resuming) {
       // The configuration stored in the checkpoint is the truth; config.toml is a readable copy.
-      for (const ConfigDifference& d : config_differences(loaded.config, ex_.resolved_toml))
+      for (const ConfigDifference& d : config_differences(loaded.config, ex_.resolved_toml)) {
+        if (!may_change_on_resume(d.key) && d.before == "(absent)")
+          throw InputError(dir_.path().string() +
+                           ": cannot resume: the run was made by an older qdrun or plugin, which had no " + d.key +
+                           " (and wrote other files); finish it with the build that made it (provenance.toml "
+                           "names its git revision and plugins)");
         if (!may_change_on_resume(d.key))
           throw InputError(dir_.path().string() + ": cannot resume: " + d.key + " is " + d.after +
                            " in config.toml (or --set) but the run was made with " + d.before +
                            "; only experiment.loops and the [evaluation], [output] and [plugins] keys may change" +
                            (d.key == "experiment.name" ? " (the run directory is named after experiment.name)" : ""));
+      }
       if (n.loop + 1 > s.loops)
         throw InputError(dir_.path().string() + ": cannot resume: experiment.loops = " + std::to_string(s.loops) +
                          " is below the " + std::to_string(n.loop + 1) + " loops that have run");
@@ -262,6 +290,12 @@ void Run::iteration_done(const IterationOutcome& o) {
     row += ',';
   }
   append_number(row, archive_.coverage());
+  // QD metrics; empty where they do not apply (a task without fitness, no declared lower bound).
+  const QdMetrics q = qd_metrics(archive_, c_.has_fitness, c_.fitness_lower_bound);
+  for (const double v : {q.qd_score, q.max_fitness, q.mean_fitness}) {
+    row += ',';
+    if (!std::isnan(v)) append_number(row, v);
+  }
   row += ',';
   if (!std::isnan(o.offspring->mixing_ratio)) append_number(row, o.offspring->mixing_ratio);
   for (const std::size_t v : {o.added, o.replaced, o.invalid}) {

@@ -98,6 +98,8 @@ class Run final : private LoopObserver {
   void save_checkpoint(int loop);
   CheckpointStore::Components checkpointed_components() const;
   void write_provenance() const;
+  // grid.toml, and a CVT's centroids.csv.
+  void write_grid() const;
   void report(int loop, int iteration, bool loop_finished, const std::string& note = {});
   double wall_seconds() const;
 

@@ -199,8 +199,8 @@ Leftover RunDirectory::leftover(const fs::path& dir, std::string* found) {
 
 void RunDirectory::remove_unfinished_start(const fs::path& dir) {
   std::error_code ec;
-  for (const char* name : {"config.toml", "provenance.toml", "status", "grid.toml", "metrics.csv", "training.csv",
-                           "losses.csv", "pca.csv", "dataset.bin", "checkpoint.bin.tmp", "status.tmp"})
+  for (const char* name : {"config.toml", "provenance.toml", "status", "grid.toml", "centroids.csv", "metrics.csv",
+                           "training.csv", "losses.csv", "pca.csv", "dataset.bin", "checkpoint.bin.tmp", "status.tmp"})
     fs::remove(dir / name, ec);
   for (const auto& e : fs::directory_iterator(dir, ec)) {
     const std::string name = e.path().filename().string();

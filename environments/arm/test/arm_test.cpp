@@ -39,8 +39,39 @@ TEST(Arm, StretchedArmEndsInTheLastXBin) {
   EXPECT_DOUBLE_EQ(values[1], 1.0);  // x
 }
 
+// A policy whose output is the constant action (1, 0, 0): joint 0 turns by dt every step, 50 steps,
+// so the final angles are (5, 0, 0). Effort fitness -dt * 50 = -5; angle-variance fitness minus
+// the variance of (5, 0, 0), -50/9; the declared bounds are the worst any policy can do.
+TEST(Arm, FitnessOfAConstantActionAndTheDeclaredBounds) {
+  const qd::PolicyShape shape(6, {8, 8}, 3);
+  qd::Matrix params = qd::Matrix::Zero(1, static_cast<Eigen::Index>(shape.param_count()));
+  const int last = shape.layers() - 1;
+  params(0, static_cast<Eigen::Index>(shape.layer_offset(last) + shape.layer_inputs(last) * 3)) = 1.0;  // bias 0
+  const std::uint64_t seed = 0;
+  qd::Config variance = qd::defaults_of(qd::arm::kArmParams, "environment");
+  variance.set_string("fitness", "angle-variance");
+  for (const bool angle : {false, true}) {
+    const ArmEnvironment env(angle ? variance : qd::defaults_of(qd::arm::kArmParams, "environment"), {});
+    std::vector<qd::Trace> traces(1);
+    env.rollout({&shape, params.data(), &seed, 0, 1}, traces.data());
+    ASSERT_EQ(traces[0].status, qd::EvalStatus::kOk);
+    EXPECT_NEAR(traces[0].aux.last()[0], 5.0, 1e-12);
+    EXPECT_NEAR(traces[0].fitness, angle ? -50.0 / 9.0 : -5.0, 1e-12);
+    const qd::EnvironmentInfo info = env.info();
+    EXPECT_TRUE(info.has_fitness);
+    EXPECT_EQ(info.fitness_lower_bound, angle ? -25.0 : -15.0);  // -(dt steps)^2; -dt steps joints
+  }
+}
+
 TEST(Arm, EnvironmentConforms) {
   const qd::testing::Report report = qd::testing::check_environment(environment());
+  EXPECT_TRUE(report.ok()) << report;
+}
+
+TEST(Arm, AngleVarianceEnvironmentConforms) {
+  qd::Config c = qd::defaults_of(qd::arm::kArmParams, "environment");
+  c.set_string("fitness", "angle-variance");
+  const qd::testing::Report report = qd::testing::check_environment(ArmEnvironment(c, {}));
   EXPECT_TRUE(report.ok()) << report;
 }
 

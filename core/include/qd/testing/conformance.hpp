@@ -128,7 +128,8 @@ inline Dataset make_dataset(const Matrix& params) {
 }
 
 // A batch of policies for an environment: the network shape follows env.info() (observation and
-// action sizes) and `hidden`; parameters are U(-scale, scale); episode seeds differ per row.
+// action sizes) and `hidden`, or is a plain vector of info().parameters values; parameters are
+// U(-scale, scale); episode seeds differ per row.
 struct PolicyBatch {
   PolicyShape shape;
   Matrix params;
@@ -143,7 +144,10 @@ struct PolicyBatch {
 inline PolicyBatch random_policies(const Environment& env, std::size_t n, const std::vector<int>& hidden = {8},
                                    double scale = 1.0, std::uint64_t seed = 1) {
   const EnvironmentInfo info = env.info();
-  PolicyBatch b{PolicyShape(info.observation_size, hidden, info.action_size), Matrix(), {}};
+  PolicyBatch b{info.parameters > 0 ? PolicyShape::direct(static_cast<std::size_t>(info.parameters))
+                                    : PolicyShape(info.observation_size, hidden, info.action_size),
+                Matrix(),
+                {}};
   b.params = random_matrix(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(b.shape.param_count()), seed, scale);
   for (std::size_t i = 0; i < n; ++i) b.episode_seeds.push_back(Rng::derive_seed(seed, Stream::kEpisode, 0, 0, i));
   return b;
@@ -378,9 +382,15 @@ inline Report check_environment(const Environment& env, const EnvironmentOptions
   if (!detail::same_build(r)) return r;
   EnvironmentInfo info;
   if (!detail::call(r, "info()", [&] { info = env.info(); })) return r;
-  r.expect(info.observation_size > 0, "info().observation_size = " + std::to_string(info.observation_size));
-  r.expect(info.action_size > 0, "info().action_size = " + std::to_string(info.action_size));
+  r.expect(info.parameters >= 0, "info().parameters = " + std::to_string(info.parameters));
+  if (info.parameters == 0) {
+    r.expect(info.observation_size > 0, "info().observation_size = " + std::to_string(info.observation_size));
+    r.expect(info.action_size > 0, "info().action_size = " + std::to_string(info.action_size));
+  }
   r.expect(info.max_steps > 0, "info().max_steps = " + std::to_string(info.max_steps));
+  r.expect(!std::isinf(info.fitness_lower_bound), "info().fitness_lower_bound is infinite (NaN = not declared)");
+  r.expect(info.has_fitness || std::isnan(info.fitness_lower_bound),
+           "info() declares a fitness lower bound but has_fitness is false");
   if (!r.expect(o.policies >= 4, "EnvironmentOptions::policies must be at least 4") || !r.ok()) return r;
 
   const std::size_t n = o.policies;
@@ -392,7 +402,7 @@ inline Report check_environment(const Environment& env, const EnvironmentOptions
 
   std::vector<Trace> whole(n);
   if (!detail::call(r, "rollout() of the whole batch", [&] { run(whole, 0, n); })) return r;
-  detail::Rows bad_status, no_message, bad_steps, bad_series, not_finite;
+  detail::Rows bad_status, no_message, bad_steps, bad_series, not_finite, below_bound;
   std::size_t ok_rows = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const Trace& t = whole[i];
@@ -406,8 +416,12 @@ inline Report check_environment(const Environment& env, const EnvironmentOptions
       ok_rows += !(o.nan_policy_fails && i == n - 1);
       if (!std::isfinite(t.fitness) || !detail::all_finite(t.main.data) || !detail::all_finite(t.aux.data))
         not_finite.add(i);
+      else if (info.has_fitness && t.fitness < info.fitness_lower_bound)
+        below_bound.add(i, detail::str(t.fitness));
     }
   }
+  below_bound.report(
+      r, "kOk traces whose fitness is below info().fitness_lower_bound = " + detail::str(info.fitness_lower_bound));
   bad_status.report(r, "traces with a status that is not an EvalStatus value");
   no_message.report(r, "traces with status != kOk but no message saying why");
   bad_steps.report(r, "traces whose steps are outside [0, info().max_steps = " + std::to_string(info.max_steps) + "]");
@@ -485,33 +499,44 @@ inline Report check_descriptor(const Descriptor& d, const std::vector<Trace>& tr
         again = d.grid();
       }))
     return r;
-  const std::size_t dims = g.shape.size();
-  r.expect(dims > 0, "grid().shape is empty");
-  r.expect(g.names.size() == dims && g.lower.size() == dims && g.upper.size() == dims,
-           "grid() has " + std::to_string(dims) + " dimensions but " + std::to_string(g.names.size()) + " names, " +
-               std::to_string(g.lower.size()) + " lower and " + std::to_string(g.upper.size()) + " upper bounds");
+  const std::size_t dims = g.dims();
+  r.expect(dims > 0 && !g.shape.empty(), "grid() has no dimensions (names or shape empty)");
+  r.expect(g.lower.size() == dims && g.upper.size() == dims, "grid() has " + std::to_string(dims) + " names but " +
+                                                                 std::to_string(g.lower.size()) + " lower and " +
+                                                                 std::to_string(g.upper.size()) + " upper bounds");
   r.expect(g.cells > 0, "grid().cells = " + std::to_string(g.cells));
-  std::int64_t product = 1;
-  for (std::size_t k = 0; k < dims; ++k) {
-    r.expect(g.shape[k] > 0, "grid().shape[" + std::to_string(k) + "] = " + std::to_string(g.shape[k]));
-    product *= g.shape[k];
-    if (k < g.lower.size() && k < g.upper.size())
-      r.expect(std::isfinite(g.lower[k]) && std::isfinite(g.upper[k]) && g.lower[k] < g.upper[k],
-               "grid() range of dimension " + std::to_string(k) + " is [" + detail::str(g.lower[k]) + ", " +
-                   detail::str(g.upper[k]) + "]");
+  for (std::size_t k = 0; k < std::min({dims, g.lower.size(), g.upper.size()}); ++k)
+    r.expect(std::isfinite(g.lower[k]) && std::isfinite(g.upper[k]) && g.lower[k] < g.upper[k],
+             "grid() range of dimension " + std::to_string(k) + " is [" + detail::str(g.lower[k]) + ", " +
+                 detail::str(g.upper[k]) + "]");
+  if (g.is_cvt()) {
+    r.expect(g.shape.size() == 1 && g.shape[0] == g.cells, "a CVT grid()'s shape is not [cells]");
+    r.expect(g.centroids.size() == static_cast<std::size_t>(g.cells) * dims,
+             "grid() has " + std::to_string(g.centroids.size()) + " centroid values for " + std::to_string(g.cells) +
+                 " cells of " + std::to_string(dims) + " dimensions");
+    r.expect(detail::all_finite(g.centroids), "grid() has non-finite centroids");
+  } else {
+    r.expect(g.shape.size() == dims, "grid() has " + std::to_string(g.shape.size()) + " shape dimensions but " +
+                                         std::to_string(dims) + " names");
+    std::int64_t product = 1;
+    for (std::size_t k = 0; k < g.shape.size(); ++k) {
+      r.expect(g.shape[k] > 0, "grid().shape[" + std::to_string(k) + "] = " + std::to_string(g.shape[k]));
+      product *= g.shape[k];
+    }
+    r.expect(g.cells == product, "grid().cells = " + std::to_string(g.cells) + " but the product of grid().shape is " +
+                                     std::to_string(product) +
+                                     " (cells are row-major over the shape; the core refuses such a grid)");
   }
-  r.expect(g.cells == product, "grid().cells = " + std::to_string(g.cells) + " but the product of grid().shape is " +
-                                   std::to_string(product) +
-                                   " (cells are row-major over the shape; the core refuses such a grid)");
-  r.expect(g.labels.empty() || g.labels.size() == dims,
+  r.expect(g.labels.empty() || (!g.is_cvt() && g.labels.size() == dims),
            "grid() has bin labels for " + std::to_string(g.labels.size()) + " of its " + std::to_string(dims) +
-               " dimensions (give one list per dimension, empty where the bins are numbered)");
-  for (std::size_t k = 0; k < g.labels.size() && k < dims; ++k)
+               " dimensions (give one list per dimension, empty where the bins are numbered; a CVT has none)");
+  for (std::size_t k = 0; k < g.labels.size() && k < g.shape.size(); ++k)
     r.expect(g.labels[k].empty() || static_cast<std::int64_t>(g.labels[k].size()) == g.shape[k],
              "grid() has " + std::to_string(g.labels[k].size()) + " bin labels for dimension " + std::to_string(k) +
                  " of " + std::to_string(g.shape[k]) + " bins");
   r.expect(again.shape == g.shape && again.names == g.names && again.cells == g.cells && again.labels == g.labels &&
-               detail::same_bits(again.lower, g.lower) && detail::same_bits(again.upper, g.upper),
+               detail::same_bits(again.lower, g.lower) && detail::same_bits(again.upper, g.upper) &&
+               detail::same_bits(again.centroids, g.centroids),
            "grid() changed between two calls");
   if (!r.ok()) return r;
 
@@ -904,8 +929,16 @@ inline Report check_mutator(const MutatorFactory& make, MutatorCase c = {}) {
         b->begin_loop(loop_context);
       }))
     return r;
-  std::vector<Insertion> outcomes(c.count);
-  for (std::size_t i = 0; i < c.count; ++i) outcomes[i] = static_cast<Insertion>(i % 3);  // added, replaced, rejected
+  // Scripted outcomes, cycling through new cell, improved, replaced and discarded, with fitnesses.
+  std::vector<OffspringResult> results(c.count);
+  for (std::size_t i = 0; i < c.count; ++i) {
+    OffspringResult& x = results[i];
+    x.outcome = static_cast<Outcome>(i % 4);
+    x.cell = static_cast<std::int64_t>(i);
+    x.fitness = 1.0 + 0.25 * static_cast<double>(i % 7);
+    if (x.outcome != Outcome::kNewCell)
+      x.previous = x.outcome == Outcome::kImproved ? x.fitness - 0.5 : x.fitness + 0.5;
+  }
   for (int it = 0; it < c.iterations; ++it) {
     const std::string where = "loop " + std::to_string(c.loop) + " iteration " + std::to_string(it) + ": ";
     Offspring out_a, out_b;
@@ -921,10 +954,10 @@ inline Report check_mutator(const MutatorFactory& make, MutatorCase c = {}) {
     fb.loop = c.loop;
     fb.iteration = it;
     fb.offspring = c.count;
-    fb.added = (c.count + 2) / 3;
-    fb.replaced = (c.count + 1) / 3;
-    fb.rejected = c.count / 3;
-    fb.outcomes = &outcomes;
+    fb.added = (c.count + 3) / 4;
+    fb.replaced = (c.count + 2) / 4 + (c.count + 1) / 4;
+    fb.rejected = c.count / 4;
+    fb.results = &results;
     if (!detail::call(r, where + "feedback()", [&] {
           a->feedback(fb);
           b->feedback(fb);
