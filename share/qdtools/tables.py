@@ -114,9 +114,10 @@ def environments(share=SHARE):
 
 
 def experiment_variants(experiments_dir):
-    """The environment variants of an experiment directory: its subdirectories holding the files of
-    the algorithm table (experiments/<variant>/<experiment>.toml), test fixtures (smoke) left out."""
+    """The environment variants of an experiment directory: its subdirectories holding a file for
+    every algorithm of the table (experiments/<variant>/<experiment>.toml), the paper's comparison;
+    test fixtures (smoke) and benchmarks with other algorithms (lp-sphere) left out."""
     stems = set(algorithms().experiments)
     root = Path(experiments_dir)
     return sorted(d.name for d in root.iterdir()
-                  if d.is_dir() and d.name != "smoke" and stems & {p.stem for p in d.glob("*.toml")})
+                  if d.is_dir() and d.name != "smoke" and stems <= {p.stem for p in d.glob("*.toml")})
