@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Reliability campaigns (not part of the test suite; about 4 minutes on 2 cores): what hostile
+# Reliability campaigns (not part of the test suite; about 4-5 minutes on 2 busy cores): what hostile
 # conditions, kills and corruption do to runs. Every attack runs without a terminal or a prompt.
 #   scripts/reliability.sh [QDRUN] [KILLS=20] [FLIPS_PER_FILE=40]
 #   QD_RELIABILITY_ONLY=REGEX scripts/reliability.sh ...   only the verdicts whose name matches, with
