@@ -6,7 +6,7 @@
 #                                                          their logs; no campaigns
 # QDRUN is a qdrun of a build with tests (default build/bin/qdrun): the hostile plugins of
 # tests/plugins (BUILD/tests/plugins) and the unit tests (BUILD/bin/qd_unit_tests) come with it.
-# 1. Hostile conditions: the 20 cases of issue 32 (case N) and 40 further ones (extra N), each ending
+# 1. Hostile conditions: the 20 cases of issue 32 (case N) and 41 further ones (extra N), each ending
 #    with the behaviour docs/user-guide.md documents. One verdict line each.
 # 2. Random kills: a run is killed with SIGKILL at a random moment, resumed, and compared with an
 #    uninterrupted run (archive byte for byte, logs without their time columns).
@@ -651,7 +651,18 @@ extra_40() {  # too few file descriptors (ulimit -n): exit 4 naming the file, an
     esac
   done
 }
-for n in $(seq -w 1 40); do
+extra_41() {  # an experiment file edited while its sweep runs: later runs are refused, never run with the edit
+  cp "$exp" "$work/x41.toml"
+  "$Q" "$work/x41.toml" --seeds 1,2 -o "$work/x41" --workers 1 --jobs 1 "${long[@]}" > "$work/x41.out" & pid=$!
+  for _ in $(seq 1 3000); do grep -q "start  smoke-iso/seed-1" "$work/x41.out" && break; sleep 0.01; done
+  sed -i 's/^sigma = .*/sigma = 0.3/' "$work/x41.toml"
+  wait $pid && got=0 || got=$?
+  [ $got -eq 1 ] && grep -q "FAILED smoke-iso/seed-2: cannot start it: .*x41.toml (or a file it includes) changed since the sweep planned this run ('sigma = 0.1' then, 'sigma = 0.3' now)" "$work/x41.out" \
+    || { echo "exit $got: $(cat "$work/x41.out")"; return 1; }
+  is_complete "$work/x41/smoke-iso/seed-1"; grep -qx "sigma = 0.1" "$work/x41/smoke-iso/seed-1/config.toml"
+  [ ! -e "$work/x41/smoke-iso/seed-2/config.toml" ]
+}
+for n in $(seq -w 1 41); do
   title=$(grep -m1 "^extra_$n() {" "$0" | sed 's/.*# //')
   verdict "extra $n: $title" "extra_$n"
 done

@@ -59,8 +59,9 @@ std::string last_line(const fs::path& p) {
   return last;
 }
 
-// First line where two texts differ, for the message about a run directory that holds another run.
-std::string first_difference(const std::string& a, const std::string& b) {
+// First line where two texts differ, for the message about a run directory that holds another run
+// (or a file changed since the plan: `then` instead of "there").
+std::string first_difference(const std::string& a, const std::string& b, const char* then = "there") {
   std::istringstream ia(a), ib(b);
   std::string la, lb;
   while (true) {
@@ -68,7 +69,7 @@ std::string first_difference(const std::string& a, const std::string& b) {
     if (!ga && !gb) return "";
     if (!ga) la = "<end>";
     if (!gb) lb = "<end>";
-    if (la != lb) return "'" + la + "' there, '" + lb + "' now";
+    if (la != lb) return "'" + la + "' " + then + ", '" + lb + "' now";
   }
 }
 
@@ -100,7 +101,8 @@ struct PlannedRun {
   std::string file;                // the experiment file, and the overrides the run gets
   std::vector<std::string> overrides;
   const std::uint64_t* seed = nullptr;
-  int first_loop = 0;  // the loop a resumed run starts at
+  int first_loop = 0;    // the loop a resumed run starts at
+  std::string resolved;  // the configuration planned (canonical), checked again at its start
 };
 
 class RegistryCache {
@@ -180,6 +182,24 @@ int completed_loops(const fs::path& metrics, int iterations) {
   return done;
 }
 
+// The configuration a run of `file` gets (canonical, components not built): what the sweep planned,
+// and checked again when the run starts.
+std::string run_configuration(const SweepOptions& o, const std::string& file, const std::uint64_t* seed,
+                              const std::vector<std::string>& overrides, RegistryCache& regs) {
+  const Document doc = read_run_document(o, file, seed, overrides);
+  return canonical(runtime::resolve(doc, regs.get(doc.plugin_paths())).resolved_toml);
+}
+
+// A run starts with the configuration the sweep planned and checked, or not at all: its experiment
+// file (or one it includes) edited while the sweep runs, a sweep of hours, would otherwise give
+// runs of two configurations under one name without a word.
+void check_unchanged(const SweepOptions& o, const PlannedRun& r, RegistryCache& regs) {
+  const std::string now = run_configuration(o, r.file, r.seed, r.overrides, regs);
+  if (now != r.resolved)
+    throw InputError(r.file + " (or a file it includes) changed since the sweep planned this run (" +
+                     first_difference(r.resolved, now, "then") + "); run the sweep again to plan with it");
+}
+
 PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::uint64_t* seed, RegistryCache& regs) {
   std::vector<std::string> overrides = o.sets;
   auto read = [&](const std::vector<std::string>& extra) { return read_run_document(o, file, seed, extra); };
@@ -209,6 +229,7 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
   p.seed = seed;
   p.dir = now.dir;
   p.label = now.settings.name + "/seed-" + std::to_string(now.settings.seed);
+  p.resolved = run_configuration(o, file, seed, overrides, regs);
   p.child.push_back(file);
   if (seed) p.child.insert(p.child.end(), {"--seed", std::to_string(*seed)});
   if (!o.output.empty()) p.child.insert(p.child.end(), {"--output", o.output});
@@ -627,6 +648,7 @@ int run_sweep(const SweepOptions& o,
       for (const auto& p : o.plugin_paths) args.insert(args.end(), {"--plugin-path", p});
       pid_t pid = -1;
       try {
+        check_unchanged(o, r, regs);
         std::error_code ec;
         fs::create_directories(r.dir, ec);
         if (ec) throw InputError("cannot create the run directory " + r.dir.string() + ": " + ec.message());
