@@ -336,6 +336,72 @@ def lengthening(r):
     return lines
 
 
+PAPER_AT = (100000, 200000, 300000, 500000, 1000000, 2000000)
+
+
+def coverage_at(summary, evaluations, of):
+    """A run's coverage in % of `of` cells after `evaluations` (its last row at or before), None when
+    the run stopped before."""
+    rows = summary["run"].metrics
+    if not rows or rows[-1]["evaluations"] < evaluations:
+        return None
+    elites = [m["elites"] for m in rows if m["evaluations"] <= evaluations]
+    return 100.0 * (elites[-1] if elites else 0) / of
+
+
+def paper(r):
+    """Per variant with a paper figure (environments.toml [[paper_figure]]): the median over seeds
+    of our coverage against the paper's curve at the same evaluations (share/paper-curves.csv)."""
+    envs = tables.environments()
+    lines = []
+    for env in r.envs:
+        env_runs = [s for a in r.algs for s in r.runs[(env, a)]]
+        variants = {s["run"].env for s in env_runs}
+        figure = next((envs.paper_figures[v] for v in sorted(variants) if v in envs.paper_figures), None)
+        if not figure or len(variants) != 1:
+            continue
+        rows, used = [], set()
+        for a in r.algs:
+            cells = []
+            for e in PAPER_AT:
+                ours = []
+                for s in r.runs[(env, a)]:
+                    of = s["index_space"] if figure["percent_of"] == "index_space" else s["cells"]
+                    c = coverage_at(s, e, of) if of else None
+                    if c is not None:
+                        ours.append(c)
+                theirs = tables.paper_value(figure["figure"], r.name(a), e)
+                if ours and theirs:
+                    used.add(e)
+                    med = stats.nearest(ours, 50)
+                    cells.append(f"{med:.2f} / {theirs:.2f} = {med / theirs:.2f} ({len(ours)})")
+                else:
+                    cells.append("")
+            rows.append((r.name(a), cells))
+        used = [e for e in PAPER_AT if e in used]
+        if not used:
+            continue
+        if not lines:
+            lines = ["", "## Against the paper's figures", "",
+                     "Coverage read off the paper's figures (the median curves of the coverage figures the authors "
+                     "publish with their code, digitised every 10 000 evaluations: share/paper-curves.csv; "
+                     "results/paper-curves/ has the digitiser and its check) against ours at the same number of "
+                     "evaluations: the median over the seeds whose runs reached it (their count in brackets), "
+                     "ours / paper = ratio."]
+        what = ("% of " + str(next(s["index_space"] for s in env_runs)) if figure["percent_of"] == "index_space"
+                else "% of the grid's cells")
+        made = {"reference": "the reference code's configurations", "paper-text": "the paper's text"}.get(
+            figure["configs"], figure["configs"])
+        ran = r.selection.get("configs")
+        note = f"; this report ran {'the same' if ran == figure['configs'] else 'another'} set" if ran else ""
+        lines += ["", f"{env} ({what}; the figure was made with {made}{note}):", "",
+                  "| algorithm | " + " | ".join(f"at {e:,}".replace(",", " ") for e in used) + " |",
+                  "|---|" + "---|" * len(used)]
+        lines += [f"| {name} | " + " | ".join(c for c, e in zip(cells, PAPER_AT) if e in used) + " |"
+                  for name, cells in rows]
+    return lines
+
+
 def diagnostics(r):
     """Per environment: the mixing ratio as the paper's figures aggregate it, the representation's
     epochs per loop and the final elites' parameter norms: what tells whether the latent branch of
@@ -392,7 +458,7 @@ def revisions(r):
     return ["", f"Git revisions of the runs: {', '.join(sorted({s['git'] for s in r.every_run}))}."]
 
 
-SECTIONS = [title, header, environments, diagnostics, time_per_million, cost, lengthening, revisions]
+SECTIONS = [title, header, environments, paper, diagnostics, time_per_million, cost, lengthening, revisions]
 
 
 def render(r):
