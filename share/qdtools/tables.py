@@ -114,9 +114,9 @@ def environments(share=SHARE):
 
 
 def experiment_variants(experiments_dir):
-    """The environment variants of an experiment directory: its subdirectories holding the files of
-    the algorithm table (experiments/<variant>/<experiment>.toml), test fixtures (smoke) left out."""
+    """The environment variants of an experiment directory: its subdirectories holding a file for
+    every algorithm of the table (experiments/<variant>/<experiment>.toml). Directories with only some
+    of them (the smoke runs, another benchmark's lp-sphere/) are not a variant of the paper."""
     stems = set(algorithms().experiments)
     root = Path(experiments_dir)
-    return sorted(d.name for d in root.iterdir()
-                  if d.is_dir() and d.name != "smoke" and stems & {p.stem for p in d.glob("*.toml")})
+    return sorted(d.name for d in root.iterdir() if d.is_dir() and stems <= {p.stem for p in d.glob("*.toml")})

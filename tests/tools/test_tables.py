@@ -26,6 +26,9 @@ class Variants(unittest.TestCase):
         self.assertEqual(tables.experiment_variants(fixtures.SOURCE / "experiments"),
                          ["bipedal-kicker", "bipedal-kicker-mix-scale", "bipedal-walker", "bipedal-walker-mix-scale",
                           "striker", "striker-mix-scale"])
+        # The reference set is a directory of variants too (qdreport --experiments experiments/reference).
+        self.assertEqual(tables.experiment_variants(fixtures.SOURCE / "experiments" / "reference"),
+                         ["bipedal-kicker", "bipedal-walker", "striker"])
 
     def test_algorithms(self):
         algs = tables.algorithms()
