@@ -23,6 +23,7 @@ import io
 import shlex
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 from . import ToolError, plot_cli, runs as runs_mod, tables
@@ -56,7 +57,13 @@ def parser():
     ap.add_argument("--note", action="append", default=[],
                     help="a sentence for the report's notes (repeatable), e.g. what else used the machine")
     ap.add_argument("-o", "--output", default="report", help="report directory: runs/, figures/, REPORT.md")
-    ap.add_argument("--experiments", help="experiment directory (default: the one installed beside qdreport)")
+    ap.add_argument("--configs", choices=("reference", "paper-text"), default="reference",
+                    help="which experiment files: 'reference' (default), the reference code's configurations, which "
+                         "made the paper's figures (experiments/reference/); 'paper-text', the paper's text "
+                         "(experiments/<environment>/). experiments/README.md lists their differences; the report "
+                         "names the set")
+    ap.add_argument("--experiments", help="experiment directory holding the set (default: the one installed beside "
+                    "qdreport)")
     ap.add_argument("--qdrun", help="qdrun executable (default: $QDRUN, <prefix>/bin, PATH, build/bin)")
     ap.add_argument("--no-run", action="store_true", help="only plot and write the report from the runs there")
     ap.add_argument("--dry-run", action="store_true", help="print the sweep's plan and its estimated core-hours "
@@ -66,12 +73,30 @@ def parser():
     return ap
 
 
-def find_experiments(explicit):
+def config_set(directory):
+    """('reference' or 'paper-text', the run-name prefix) of a directory of experiment files, read from
+    its Striker PoMS file's experiment name ("reference-striker-poms" or "striker-poms")."""
+    with open(Path(directory) / "striker" / "poms.toml", "rb") as f:
+        name = tomllib.load(f).get("experiment", {}).get("name", "")
+    prefix = name[:-len("striker-poms")] if name.endswith("striker-poms") else ""
+    return ("reference" if prefix == "reference-" else "paper-text"), prefix
+
+
+def find_experiments(explicit, configs="paper-text"):
+    """The directory of the chosen set's files: DIR/reference or DIR itself, DIR the one given or the
+    experiments/ installed beside the tools."""
     share = tables.SHARE
     for c in (explicit, share / "experiments", share.parent / "experiments"):
-        if c and (Path(c) / "striker" / "poms.toml").exists():
-            return Path(c)
-    raise ToolError("cannot find the experiment files (--experiments DIR)")
+        if not c:
+            continue
+        for d in ((Path(c) / "reference", Path(c)) if configs == "reference" else (Path(c),)):
+            if (d / "striker" / "poms.toml").exists() and config_set(d)[0] == configs:
+                return d
+        if explicit:
+            break
+    where = f" in {explicit}" if explicit else ""
+    raise ToolError(f"cannot find the experiment files of the {configs} set{where} (--experiments DIR: a directory "
+                    f"with striker/poms.toml{', or with reference/striker/poms.toml' if configs == 'reference' else ''})")
 
 
 def main(argv=None):
@@ -89,7 +114,8 @@ def run(argv=None):
     qdrun = find_qdrun(args.qdrun)
     if not qdrun and not args.no_run:
         raise ToolError("qdrun not found (--qdrun or $QDRUN)")
-    exp_dir = find_experiments(args.experiments)
+    exp_dir = find_experiments(args.experiments, args.configs)
+    configs, prefix = config_set(exp_dir)
     known_envs = tables.experiment_variants(exp_dir)
     envs = [e for e in args.environments.split(",") if e]
     algs = [a for a in args.algorithms.split(",") if a]
@@ -127,7 +153,8 @@ def run(argv=None):
         if record.get("header", {}).get(hand):
             header[hand] = record["header"][hand]
     selection = {"environments": envs, "algorithms": algs, "seeds": args.seeds, "evaluations": args.evaluations,
-                 "loops": args.loops, "max_epochs": args.max_epochs, "set": args.set}
+                 "loops": args.loops, "max_epochs": args.max_epochs, "set": args.set, "configs": configs,
+                 "prefix": prefix}
     study.write(out, {"selection": selection, "header": header, "addendum": record.get("addendum", [])})
     draw(out, kinds=None, qdrun=qdrun)
     write(out, selection, header, record.get("addendum", []))
@@ -151,7 +178,8 @@ def render(out, selection, header, addenda):
     runs_root = out / "runs"
     envs, algs = selection["environments"], selection["algorithms"]
     # Every run of the chosen environments and algorithms: the epoch caps are read from the runs themselves.
-    found = {(e, a): [summary.summarise(runs_mod.Run(d)) for d in sorted((runs_root / f"{e}-{a}").glob("seed-*"),
+    prefix = selection.get("prefix", "")  # the reference set's runs are named reference-<env>-<alg>
+    found = {(e, a): [summary.summarise(runs_mod.Run(d)) for d in sorted((runs_root / f"{prefix}{e}-{a}").glob("seed-*"),
                                                                           key=lambda d: d.name)
                       if runs_mod.is_run_dir(d)] for e in envs for a in algs}
     report = sections.Report(out=out, envs=envs, algs=algs, runs=found, figures=read_manifest(out / "figures"),

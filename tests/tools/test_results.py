@@ -74,7 +74,11 @@ class Slim(unittest.TestCase):
         results.slim_run(run, root / "slim")
         kept = sorted(p.name for p in (root / "slim").iterdir())
         self.assertEqual(kept, ["archive.csv.gz", "config.toml", "grid.toml", "metrics.csv.gz", "provenance.toml",
-                                "status"])
+                                "status", "summary.toml"])
+        # The elites' parameter norms, which need the parameters the copy drops: (0.5, -0.5) each.
+        norms = runs.read_toml(root / "slim" / "summary.toml")
+        self.assertAlmostEqual(norms["parameter_norm_median"], 0.5 ** 0.5)
+        self.assertAlmostEqual(norms["parameter_norm_max"], 0.5 ** 0.5)
         with gzip.open(root / "slim" / "archive.csv.gz", "rt") as f:
             self.assertEqual(f.read(), "index,objective,measures_0,measures_1,recn_error\n1,0.5,0.1,0.2,0\n"
                                        "4,0.7,0.3,0.4,0\n")

@@ -78,5 +78,28 @@ class Layout(unittest.TestCase):
         self.assertEqual(maps.position(bins, g.shape, [1, 3]).tolist(), [3 * 7 + 5])
 
 
+class PaperCurves(unittest.TestCase):
+    """share/paper-curves.csv read back: known points, linear between them, None outside; every
+    figure environments.toml names and every algorithm in it exists in the tables."""
+
+    def test_points_and_interpolation(self):
+        share = fixtures.tmpdir(self)
+        (share / "paper-curves.csv").write_text("figure,algorithm,quantity,evaluations,value,visibility\n"
+                                                "F,A,coverage_percent,10000,1.0,visible\n"
+                                                "F,A,coverage_percent,20000,3.0,hidden\n")
+        self.assertEqual(tables.paper_value("F", "A", 10000, share=share), 1.0)
+        self.assertEqual(tables.paper_value("F", "A", 15000, share=share), 2.0)
+        self.assertIsNone(tables.paper_value("F", "A", 30000, share=share))
+        self.assertIsNone(tables.paper_value("F", "B", 10000, share=share))
+
+    def test_the_installed_table_names_known_figures_and_algorithms(self):
+        curves = tables.paper_curves()
+        figures = {k[0] for k in curves}
+        self.assertTrue({f["figure"] for f in tables.environments().paper_figures.values()} <= figures)
+        self.assertEqual({k[1] for k in curves}, set(tables.algorithms().order))
+        # The Walker figure's PoMS curve, read at the published 100 000 evaluations.
+        self.assertAlmostEqual(tables.paper_value("BipedalWalker", "PoMS", 100000), 3.489)
+
+
 if __name__ == "__main__":
     unittest.main()
