@@ -201,7 +201,7 @@ class Run:
         self.grid = read_grid(self.path)
         self.algorithm = algs.name_of(self.representation, self.mutator) or self._label_from_file()
         if self.grid and self.grid.is_cvt and self.algorithm == algs.name_of(self.representation, self.mutator):
-            self.algorithm += " CVT"  # the same pair on a CVT archive is another curve than on a grid
+            self.algorithm += tables.CVT_SUFFIX  # the same pair on a CVT archive is another curve than on a grid
         self.experiment = (algs.by_pair.get((self.representation, self.mutator)) or {}).get("experiment")
         epochs = self.config.get("representation", {}).get("max_epochs") if self.representation == "autoencoder" \
             else None

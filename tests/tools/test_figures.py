@@ -78,6 +78,35 @@ class Figures(unittest.TestCase):
         self.assertEqual(names, ("x of the cell's centroid", "y of the cell's centroid"))
         self.assertEqual([v.tolist() for v in values], [[0.5, 0.0, 0.5], [1.0, 0.0, 1.0]])
 
+    def test_trajectories_of_an_unknown_task_from_its_trace_columns(self):
+        # qdrun --replay's output is written beforehand: qdplot replays only when it is older than
+        # the archive, so /bin/true stands in for qdrun.
+        for rows_per_path, header, said_expected in (
+                (3, "main_0,main_1", "one path per elite (2), coloured by its final main_0"),
+                (1, "main_0,main_1", "one point per elite whose trace is one row (2), coloured by its main_0"),
+                (2, "", "environment 'point-mass' records no rows in its trace's main table (Trace::main)")):
+            root = fixtures.tmpdir(self)
+            fixtures.write_run(root / "runs", grid=GRID, archive=[(7, 1.0, 1.2, 0.7), (9, 3.0, 1.8, 0.1)],
+                               experiment_file="/x/decaying-iso.toml")
+            data = root / "figures" / "data" / "traces-point-mass-decaying-iso-seed-1.csv"
+            data.parent.mkdir(parents=True)
+            data.write_text("cell,landed,status,row" + ("," + header if header else "") + "\n" + "".join(
+                f"{cell},{cell},ok,{k}" + (f",{0.1 * k + cell},{0.2 * k}" if header else "") + "\n"
+                for cell in (7, 9) for k in range(rows_per_path)))
+            with contextlib.redirect_stdout(io.StringIO()) as said:
+                plot_cli.plot([root / "runs"], root / "figures", ["traces"], formats=("png",), dump=True,
+                              qdrun="/bin/true")
+            if not header:
+                self.assertIn(said_expected, said.getvalue())
+                self.assertFalse((root / "figures" / "traces-point-mass-decaying-iso.png").exists())
+                continue
+            fig = dump(root / "figures", "traces-point-mass-decaying-iso")["figure"]
+            self.assertEqual(fig["legends"], [said_expected])
+            self.assertEqual(fig["colorbars"], ["final main_0" if rows_per_path > 1 else "main_0"])
+            self.assertEqual(fig["axes"][0]["xlabel"], "main_0 (column 1 of the trace's main table)")
+            self.assertEqual(fig["axes"][0]["ylabel"], "main_1 (column 2 of the trace's main table)")
+            self.assertGreaterEqual(min(fig["axes"][0]["xticks"], fig["axes"][0]["yticks"]), 2)
+
     def test_loss_curves_label_several_ticks_whatever_their_range(self):
         for low, high in ((100.0, 120.0), (80.0, 600.0), (1e-3, 50.0)):
             root = fixtures.tmpdir(self)
