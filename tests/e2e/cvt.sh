@@ -2,7 +2,7 @@
 # A CVT archive's run directory (issue 34): grid.toml says kind = "cvt" and names centroids.csv, whose
 # rows are the centroids (one per cell) and which every cell of archive.csv is nearest to; the same
 # seed gives the same centroids; a resumed run reloads them (an edited centroids.csv is refused,
-# naming the file) and ends like an uninterrupted run.
+# naming the file) and ends like an uninterrupted run; qdplot reads it with the tools' reader.
 source "$(dirname "$0")/lib.sh"
 qdrun=$1 exp=$2 out=$3
 rm -rf "$out"
@@ -28,6 +28,12 @@ for cell, m in zip(archive.cells, archive.measures):
     assert best == cell, f"elite in cell {cell} is nearest to centroid {best}"
 print(f"{archive.cells.size} elites in their nearest centroid's cell")
 PY
+# qdplot reads the run (centroids.csv checked against grid.toml) and names its curve "PoMS CVT", so it
+# never shares a curve with PoMS on a grid.
+/usr/bin/python3 "$(dirname "$0")/../../share/qdplot" "$full" -o "$out/figures" --formats png --kinds coverage,maps \
+  --dump-data > "$out/qdplot.log" 2>&1 || { cat "$out/qdplot.log"; exit 1; }
+grep -q '"PoMS CVT (1 seed): [0-9]* cells' "$out"/figures/coverage-*.json \
+  || { echo "no PoMS CVT curve:"; cat "$out/qdplot.log" "$out"/figures/coverage-*.json; exit 1; }
 # An edited centroids.csv is refused on resume; restored, the resume gives the uninterrupted run.
 cp "$split/centroids.csv" "$out/centroids.csv"
 sed -i '2s/^0,\(.\)/0,9\1/' "$split/centroids.csv"
