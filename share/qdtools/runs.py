@@ -81,17 +81,26 @@ def csv_header(path):
 @dataclass
 class Grid:
     """grid.toml: the descriptor's grid. A cell index is row-major over `shape`, the last dimension
-    fastest. `labels[d]` names the bins of dimension d (empty when the descriptor names none)."""
+    fastest. `labels[d]` names the bins of dimension d (empty when the descriptor names none).
+    kind "cvt": a centroidal Voronoi tessellation, shape = [cells], `names`, `lower` and `upper` per
+    descriptor dimension, and a cell is the index of its centroid (`centroids`, from centroids.csv)."""
     cells: int
     shape: list
     names: list
     lower: list
     upper: list
     labels: list = field(default_factory=list)
+    kind: str = "grid"
+    centroids: object = None  # numpy array, cells x dimensions (kind "cvt")
+
+    @property
+    def is_cvt(self):
+        return self.kind == "cvt"
 
     def unravel(self, cells):
-        """Per dimension, the bin of every cell index."""
+        """Per dimension, the bin of every cell index (a grid's, not a CVT's)."""
         import numpy as np
+        assert not self.is_cvt, "a CVT's cells are centroids, not bins"
         out, rest = [], np.asarray(cells, dtype=np.int64)
         for bins in reversed(self.shape):
             out.append(rest % bins)
@@ -106,19 +115,42 @@ class Grid:
 
 
 def read_grid(run_dir):
-    """A run directory's grid.toml; None for runs made before qdrun wrote it."""
+    """A run directory's grid.toml (with a CVT's centroids); None for runs made before qdrun wrote it."""
     path = Path(run_dir) / "grid.toml"
     try:
         g = read_toml(path)
     except FileNotFoundError:
         return None
+    kind = g.get("kind", "grid")
+    if kind not in ("grid", "cvt"):
+        raise ToolError(f"{path}: kind = \"{kind}\" is neither \"grid\" nor \"cvt\" (a newer qdrun's run?)")
     shape = [int(b) for b in g["shape"]]
+    names = list(g["names"])
     labels = [list(x) for x in g.get("labels", [])]
-    if math.prod(shape) != g["cells"] or len(g["names"]) != len(shape) or \
-            (labels and (len(labels) != len(shape) or any(x and len(x) != n for x, n in zip(labels, shape)))):
-        raise ToolError(f"{path}: shape {shape} does not match cells = {g['cells']}, names or labels")
-    return Grid(int(g["cells"]), shape, list(g["names"]), [float(v) for v in g["lower"]],
-                [float(v) for v in g["upper"]], labels)
+    dims = len(names) if kind == "cvt" else len(shape)
+    if math.prod(shape) != g["cells"] or (kind == "cvt" and len(shape) != 1) or len(names) != dims or \
+            len(g["lower"]) != dims or len(g["upper"]) != dims or (labels and (
+                kind == "cvt" or len(labels) != len(shape) or any(x and len(x) != n for x, n in zip(labels, shape)))):
+        raise ToolError(f"{path}: shape {shape} does not match cells = {g['cells']}, names, bounds or labels")
+    centroids = read_centroids(path, g, names) if kind == "cvt" else None
+    return Grid(int(g["cells"]), shape, names, [float(v) for v in g["lower"]], [float(v) for v in g["upper"]],
+                labels, kind, centroids)
+
+
+def read_centroids(grid_path, g, names):
+    """A CVT's centroids (centroids.csv or .gz beside grid.toml: `centroid,<name>...`, one row per
+    cell in order) as a cells x dimensions array."""
+    import numpy as np
+    path = grid_path.parent / g.get("centroids", "centroids.csv")
+    try:
+        header = csv_header(path)
+        rows = read_csv(path)
+    except FileNotFoundError as e:
+        raise ToolError(f"{grid_path}: a CVT grid whose centroids ({path.name}) are missing") from e
+    if header != ["centroid"] + names or [r["centroid"] for r in rows] != list(range(g["cells"])):
+        raise ToolError(f"{path}: not the {g['cells']} centroids of grid.toml's {', '.join(names)} "
+                        f"(header: {','.join(header)}; {len(rows)} rows)")
+    return np.array([[r[n] for n in names] for r in rows], dtype=float).reshape(len(rows), len(names))
 
 
 @dataclass
@@ -166,7 +198,10 @@ class Run:
         self.descriptor_type = self.config.get("descriptor", {}).get("type")
         self.representation = self.config.get("representation", {}).get("type", "none")
         self.mutator = self.config["mutator"]["type"]
+        self.grid = read_grid(self.path)
         self.algorithm = algs.name_of(self.representation, self.mutator) or self._label_from_file()
+        if self.grid and self.grid.is_cvt and self.algorithm == algs.name_of(self.representation, self.mutator):
+            self.algorithm += tables.CVT_SUFFIX  # the same pair on a CVT archive is another curve than on a grid
         self.experiment = (algs.by_pair.get((self.representation, self.mutator)) or {}).get("experiment")
         epochs = self.config.get("representation", {}).get("max_epochs") if self.representation == "autoencoder" \
             else None
@@ -175,7 +210,6 @@ class Run:
         self.seed = self.config["experiment"]["seed"]
         self.batch = self.config["experiment"]["batch"]
         self.loops = self.config["experiment"]["loops"]
-        self.grid = read_grid(self.path)
         try:
             self.metrics = read_csv(self.path / "metrics.csv")
         except FileNotFoundError as e:

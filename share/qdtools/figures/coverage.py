@@ -27,11 +27,12 @@ def plot(out, env, groups):
     data = {"environment": env, "algorithms": {}}
     handles, labels, ratio_names, everyone = [], [], [], []
     cells = index_space = index_label = None
+    styles = algs.styles(groups)
     for alg in sorted(groups, key=algs.rank):
         runs = sorted(groups[alg], key=lambda r: r.seed)
         everyone += runs
         cells, index_space, index_label = runs[0].cells, runs[0].index_space, runs[0].index_space_label
-        colour, marker = algs.style(alg)
+        colour, marker, linestyle = styles[alg]
         final = int(stats.nearest([r.final_elites() for r in runs], 50))
         label = f"{alg} ({len(runs)} seed{'s' if len(runs) > 1 else ''}): {final} cells, {100 * final / cells:.2f} %"
         if index_space:
@@ -46,7 +47,8 @@ def plot(out, env, groups):
         marks = [int(np.searchsorted(x, e)) for e in ends if e <= x[-1]]
         if len(marks) > MAX_MARKERS:
             marks = marks[::math.ceil(len(marks) / MAX_MARKERS)]
-        (line,) = ax.plot(x, med, color=colour, marker=marker, markevery=marks, markersize=4, linewidth=1.3)
+        (line,) = ax.plot(x, med, color=colour, marker=marker, markevery=marks, markersize=4, linewidth=1.3,
+                          linestyle=linestyle)
         handles.append(line)
         labels.append(label)
         entry = {"seeds": [r.seed for r in runs], "runs": [str(r.path) for r in runs], "cells": cells,
@@ -57,7 +59,7 @@ def plot(out, env, groups):
             ratio = mixing_ratio(runs)
             if ratio is not None:
                 ev, mean, std = ratio
-                (rline,) = axr.plot(ev, mean, color=colour, linewidth=1.2, linestyle="-")
+                (rline,) = axr.plot(ev, mean, color=colour, linewidth=1.2, linestyle=linestyle)
                 axr.fill_between(ev, mean - std, mean + std, color=colour, alpha=0.2, linewidth=0)
                 ratio_names.append(alg)
                 handles.append(rline)

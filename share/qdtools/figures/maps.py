@@ -72,6 +72,10 @@ def plot(out, run, colors=("occupancy", "fitness")):
     cells = archive.cells
     if cells.size and (cells.min() < 0 or cells.max() >= grid.cells):
         raise ToolError(f"{run.path / 'archive.csv'}: a cell index outside the {grid.cells} cells of grid.toml")
+    if grid.is_cvt:
+        print(f"qdplot: no map for {run.path}: its archive is a CVT (grid.toml kind = \"cvt\", {grid.cells} "
+              "centroids), which qdplot does not draw yet")
+        return
     if "occupancy" in colors:
         draw(out, run, grid, archive, "occupancy")
     if "fitness" in colors:
