@@ -31,7 +31,7 @@ from .qdrun import find_qdrun, version
 from .report import sections, study, summary, sweep
 from .report.commands import Shown
 
-FILE_KINDS = "coverage,maps,losses"  # the figures a directory's files alone give (no qdrun)
+FILE_KINDS = "coverage,qd,maps,losses"  # the figures a directory's files alone give (no qdrun)
 
 
 def parser():
@@ -42,7 +42,9 @@ def parser():
                     help="comma list of the environment variants of the experiment directory (its subdirectories: "
                          "striker, bipedal-walker, bipedal-kicker and their -mix-scale versions; default: "
                          "striker,bipedal-kicker)")
-    ap.add_argument("--algorithms", default=",".join(algs.experiments), help="comma list (default: all 8)")
+    ap.add_argument("--algorithms", default=",".join(algs.experiments),
+                    help="comma list of experiment file stems: the paper's 8 (the default), or any file every chosen "
+                         "environment's directory has (cma-me for experiments/lp-sphere, say)")
     ap.add_argument("--seeds", default="100,200,300", help="seed list, as qdrun --seeds (default: 100,200,300)")
     ap.add_argument("--evaluations", type=int, help="budget per run (qdrun --evaluations; default: the files' own, "
                     "the paper's: 1 002 000 for the Striker, 2 002 000 for Walker and Kicker; CPU-days)")
@@ -96,9 +98,11 @@ def run(argv=None):
     for e in envs:
         if e not in known_envs:
             ap.error(f"unknown environment '{e}' (known: {', '.join(known_envs)})")
-    for a in algs:
-        if a not in tables.algorithms().experiments:
-            ap.error(f"unknown algorithm '{a}' (known: {', '.join(tables.algorithms().experiments)})")
+    for a in algs:  # the paper's algorithms, or any experiment file that every chosen environment has
+        missing = [e for e in envs if not (exp_dir / e / f"{a}.toml").exists()]
+        if missing and a not in tables.algorithms().experiments:
+            ap.error(f"unknown algorithm '{a}': no {a}.toml in {', '.join(str(exp_dir / e) for e in missing)} "
+                     f"(the paper's: {', '.join(tables.algorithms().experiments)})")
     if args.evaluations is not None and args.loops is not None:
         ap.error("--evaluations and --loops conflict")
     if args.dry_run and args.no_run:

@@ -1,6 +1,7 @@
 """Run directories: finding them and reading what qdrun wrote (docs/user-guide.md, "Run
 directories"). Every reader takes a file plain or gzip-compressed (NAME or NAME.gz), as studies in
 results/ keep their larger files compressed."""
+import collections
 import gzip
 import io
 import math
@@ -80,14 +81,23 @@ def csv_header(path):
 
 @dataclass
 class Grid:
-    """grid.toml: the descriptor's grid. A cell index is row-major over `shape`, the last dimension
-    fastest. `labels[d]` names the bins of dimension d (empty when the descriptor names none)."""
+    """grid.toml: the descriptor's archive. kind "grid": a cell index is row-major over `shape`, the
+    last dimension fastest, and `labels[d]` names the bins of dimension d (empty when the descriptor
+    names none). kind "cvt": shape = [cells], a cell is the nearest of `centroids` (cells x
+    dimensions, from the run's centroids.csv) in the descriptor's values, whose dimensions are
+    `names`, `lower` and `upper`."""
     cells: int
     shape: list
     names: list
     lower: list
     upper: list
     labels: list = field(default_factory=list)
+    kind: str = "grid"
+    centroids: object = None  # numpy array, cells x dimensions (kind "cvt")
+
+    @property
+    def dimensions(self):
+        return len(self.names)
 
     def unravel(self, cells):
         """Per dimension, the bin of every cell index."""
@@ -106,19 +116,44 @@ class Grid:
 
 
 def read_grid(run_dir):
-    """A run directory's grid.toml; None for runs made before qdrun wrote it."""
+    """A run directory's grid.toml (with a CVT archive's centroids); None for runs made before qdrun
+    wrote it."""
     path = Path(run_dir) / "grid.toml"
     try:
         g = read_toml(path)
     except FileNotFoundError:
         return None
     shape = [int(b) for b in g["shape"]]
+    kind = g.get("kind", "grid")
+    names, lower, upper = list(g["names"]), [float(v) for v in g["lower"]], [float(v) for v in g["upper"]]
+    if kind == "cvt":
+        if shape != [g["cells"]] or len(lower) != len(names) or len(upper) != len(names):
+            raise ToolError(f"{path}: a CVT archive has shape = [cells] and lower, upper and names per dimension")
+        return Grid(int(g["cells"]), shape, names, lower, upper, [], kind,
+                    read_centroids(Path(run_dir) / g["centroids"], int(g["cells"]), names))
+    if kind != "grid":
+        raise ToolError(f"{path}: unknown kind = \"{kind}\" (grid or cvt)")
     labels = [list(x) for x in g.get("labels", [])]
-    if math.prod(shape) != g["cells"] or len(g["names"]) != len(shape) or \
+    if math.prod(shape) != g["cells"] or len(names) != len(shape) or \
             (labels and (len(labels) != len(shape) or any(x and len(x) != n for x, n in zip(labels, shape)))):
         raise ToolError(f"{path}: shape {shape} does not match cells = {g['cells']}, names or labels")
-    return Grid(int(g["cells"]), shape, list(g["names"]), [float(v) for v in g["lower"]],
-                [float(v) for v in g["upper"]], labels)
+    return Grid(int(g["cells"]), shape, names, lower, upper, labels)
+
+
+def read_centroids(path, cells, names):
+    """centroids.csv of a CVT archive (centroid,<name>...; one row per cell, in cell order) as a
+    cells x dimensions array; None when the file is missing (a study that did not keep it)."""
+    import numpy as np
+    if locate(path) is None:
+        return None
+    header = csv_header(path)
+    if header != ["centroid"] + names:
+        raise ToolError(f"{path}: header {','.join(header)} is not centroid,{','.join(names)}")
+    rows = read_csv(path)
+    values = np.array([[r[n] for n in names] for r in rows], dtype=float).reshape(len(rows), len(names))
+    if len(rows) != cells or [int(r["centroid"]) for r in rows] != list(range(cells)):
+        raise ToolError(f"{path}: {len(rows)} rows, not the centroids 0..{cells - 1} in order")
+    return values
 
 
 @dataclass
@@ -166,7 +201,10 @@ class Run:
         self.descriptor_type = self.config.get("descriptor", {}).get("type")
         self.representation = self.config.get("representation", {}).get("type", "none")
         self.mutator = self.config["mutator"]["type"]
+        self.grid = read_grid(self.path)
         self.algorithm = algs.name_of(self.representation, self.mutator) or self._label_from_file()
+        if self.grid and self.grid.kind == "cvt" and "cvt" not in self.algorithm.lower():
+            self.algorithm += "-CVT"  # the same operators on another archive: never one group with the grid's
         self.experiment = (algs.by_pair.get((self.representation, self.mutator)) or {}).get("experiment")
         epochs = self.config.get("representation", {}).get("max_epochs") if self.representation == "autoencoder" \
             else None
@@ -175,7 +213,6 @@ class Run:
         self.seed = self.config["experiment"]["seed"]
         self.batch = self.config["experiment"]["batch"]
         self.loops = self.config["experiment"]["loops"]
-        self.grid = read_grid(self.path)
         try:
             self.metrics = read_csv(self.path / "metrics.csv")
         except FileNotFoundError as e:
@@ -194,6 +231,18 @@ class Run:
         if path:
             return Path(path).stem
         return self.config["experiment"].get("name") or f"{self.representation}/{self.mutator}"
+
+    @property
+    def row_stride(self):
+        """Iterations between consecutive rows of metrics.csv within a loop: 1, or more for a study
+        that kept every k-th row (share/qdresults --rows)."""
+        steps = collections.Counter(int(b["iteration"] - a["iteration"]) for a, b in zip(self.metrics, self.metrics[1:])
+                                    if a["loop"] == b["loop"] and b["iteration"] > a["iteration"])
+        return max(steps, key=lambda k: (steps[k], k)) if steps else 1  # the most common (a loop's end may be nearer)
+
+    def has_fitness(self):
+        """Whether the run's task has a fitness: its QD metrics (metrics.csv's qd_score) are numbers."""
+        return any(isinstance(m.get("qd_score"), float) and not math.isnan(m["qd_score"]) for m in self.metrics)
 
     @property
     def complete(self):

@@ -23,6 +23,12 @@ def load(name, share=SHARE):
         raise ToolError(f"{path}: {e}") from e
 
 
+# Colours and markers of algorithms the table does not know, in the order they are given out: none
+# of the table's colours.
+OTHER_STYLES = [("tab:olive", "h"), ("tab:cyan", "<"), ("black", ">"), ("gold", "p"), ("navy", "d"),
+                ("maroon", "8"), ("lime", "H"), ("teal", "X")]
+
+
 class Algorithms:
     """share/algorithms.toml: one entry per algorithm of the paper, in legend order."""
 
@@ -44,6 +50,15 @@ class Algorithms:
         """(colour, marker) of an algorithm; black dots for one the table does not know."""
         a = self.by_name.get(name)
         return (a["colour"], a["marker"]) if a else ("black", ".")
+
+    def styles(self, names):
+        """{name: (colour, marker)} for the algorithms of one figure: the table's, and for names it does
+        not know (a run's experiment file, say cma-me) distinct ones from OTHER_STYLES in legend
+        order, so that every curve of a figure can be told apart."""
+        out, others = {}, iter(OTHER_STYLES)
+        for name in sorted(names, key=self.rank):
+            out[name] = self.style(name) if name in self.by_name else next(others, ("black", "."))
+        return out
 
     def rank(self, name):
         """Legend order: the table's, then unknown names alphabetically."""

@@ -11,10 +11,12 @@ sys.dont_write_bytecode = True  # nothing written into the source tree
 
 def write_run(root, name="my-env-decaying", seed=1, env="point-mass", rep="none", mutator="decaying-iso",
               descriptor="point-xy", metrics=None, grid=None, archive=None, experiment_file=None, extra_env="",
-              batch=10, status="complete"):
+              batch=10, status="complete", qd=None, centroids=None):
     """A run directory <root>/<name>/seed-<seed>/ with config.toml, provenance.toml, metrics.csv and,
     when given, grid.toml and archive.csv. `metrics`: rows (loop, evaluations, elites[, mixing_ratio]);
-    `grid`: (shape, names, lower, upper[, labels]); `archive`: rows (index, objective, measures...)."""
+    `grid`: (shape, names, lower, upper[, labels]); `archive`: rows (index, objective, measures...);
+    `qd`: per metrics row (qd_score, max_fitness, mean_fitness), empty without; `centroids`: a CVT
+    archive's centroids (rows of values) with `grid` = (None, names, lower, upper)."""
     d = Path(root) / name / f"seed-{seed}"
     d.mkdir(parents=True)
     (d / "config.toml").write_text(
@@ -27,7 +29,15 @@ def write_run(root, name="my-env-decaying", seed=1, env="point-mass", rep="none"
     (d / "provenance.toml").write_text(prov)
     rows = metrics or [(0, 20, 5), (1, 30, 8), (1, 40, 9), (2, 50, 12)]
     cells = 100
-    if grid:
+    if centroids is not None:
+        names, lower, upper = grid[1:4]
+        cells = len(centroids)
+        (d / "grid.toml").write_text(f'kind = "cvt"\ncells = {cells}\nshape = [{cells}]\nnames = {list(names)}\n'
+                                     f'lower = {list(lower)}\nupper = {list(upper)}\ncentroids = "centroids.csv"\n'
+                                     .replace("'", '"'))
+        (d / "centroids.csv").write_text("centroid," + ",".join(names) + "\n" + "".join(
+            f"{k}," + ",".join(map(repr, map(float, c))) + "\n" for k, c in enumerate(centroids)))
+    elif grid:
         shape, names, lower, upper = grid[:4]
         cells = 1
         for n in shape:
@@ -36,11 +46,15 @@ def write_run(root, name="my-env-decaying", seed=1, env="point-mass", rep="none"
         if len(grid) > 4:
             text += f"labels = {grid[4]}\n"
         (d / "grid.toml").write_text(text.replace("'", '"'))
-    lines = ["loop,iteration,evaluations,elites,coverage,mixing_ratio,added,replaced,invalid,wall_seconds,train_seconds"]
+    lines = ["loop,iteration,evaluations,elites,coverage,qd_score,max_fitness,mean_fitness,mixing_ratio,added,replaced,"
+             "invalid,wall_seconds,train_seconds"]
+    iteration = {}
     for i, r in enumerate(rows):
         loop, ev, el = r[:3]
         ratio = r[3] if len(r) > 3 else ""
-        lines.append(f"{loop},{i},{ev},{el},{el / cells},{ratio},0,0,0,{0.1 * (i + 1)},0")
+        q = ",".join(map(str, qd[i])) if qd else ",,"
+        it = iteration[loop] = iteration.get(loop, -1) + 1  # the iteration within its loop, as qdrun counts
+        lines.append(f"{loop},{it},{ev},{el},{el / cells},{q},{ratio},0,0,0,{0.1 * (i + 1)},0")
     (d / "metrics.csv").write_text("\n".join(lines) + "\n")
     if archive is not None:
         dims = len(archive[0]) - 2 if archive else 2

@@ -22,10 +22,20 @@ class Variants(unittest.TestCase):
         self.assertEqual(envs.variant({"type": "bipedal-walker"}), "bipedal-walker")
         self.assertEqual(envs.variant({"type": "point-mass", "mix_scale": True}), "point-mass-mix-scale-companion")
 
-    def test_experiment_variants_are_the_directories_of_the_paper(self):
+    def test_experiment_variants_are_the_directories_holding_the_papers_algorithms(self):
+        # The CMA-ME benchmark's directories hold PoMS and Iso+LineDD files beside their own (cma-me, ...).
         self.assertEqual(tables.experiment_variants(fixtures.SOURCE / "experiments"),
                          ["bipedal-kicker", "bipedal-kicker-mix-scale", "bipedal-walker", "bipedal-walker-mix-scale",
-                          "striker", "striker-mix-scale"])
+                          "lp-rastrigin", "lp-sphere", "striker", "striker-mix-scale"])
+
+    def test_styles_tell_every_algorithm_of_a_figure_apart(self):
+        algs = tables.algorithms()
+        styles = algs.styles(["cma-me", "PoMS", "MAPE-Iso-CVT", "MAPE-Iso"])
+        self.assertEqual(styles["PoMS"], algs.style("PoMS"))
+        self.assertEqual(len(set(styles.values())), 4)
+        self.assertEqual(styles["cma-me"], tables.OTHER_STYLES[1])  # unknown names in legend (alphabetical) order
+        self.assertEqual(styles["MAPE-Iso-CVT"], tables.OTHER_STYLES[0])
+        self.assertFalse({c for c, _ in tables.OTHER_STYLES} & {a["colour"] for a in algs.entries})
 
     def test_algorithms(self):
         algs = tables.algorithms()

@@ -27,11 +27,12 @@ def plot(out, env, groups):
     data = {"environment": env, "algorithms": {}}
     handles, labels, ratio_names, everyone = [], [], [], []
     cells = index_space = index_label = None
+    styles = algs.styles(groups)
     for alg in sorted(groups, key=algs.rank):
         runs = sorted(groups[alg], key=lambda r: r.seed)
         everyone += runs
         cells, index_space, index_label = runs[0].cells, runs[0].index_space, runs[0].index_space_label
-        colour, marker = algs.style(alg)
+        colour, marker = styles[alg]
         final = int(stats.nearest([r.final_elites() for r in runs], 50))
         label = f"{alg} ({len(runs)} seed{'s' if len(runs) > 1 else ''}): {final} cells, {100 * final / cells:.2f} %"
         if index_space:
@@ -96,7 +97,7 @@ def mixing_ratio(runs):
     RATIO_WINDOW evaluations, or None when no run has one."""
     ratios = []
     for r in runs:
-        window = max(1, round(RATIO_WINDOW / r.batch))
+        window = max(1, round(RATIO_WINDOW / (r.batch * r.row_stride)))  # a study may keep every k-th row
         ratios.append(stats.moving_mean([m.get("mixing_ratio", math.nan) for m in r.metrics], window))
     n = min(len(v) for v in ratios)
     stack = np.array([v[:n] for v in ratios])

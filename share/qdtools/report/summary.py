@@ -67,7 +67,16 @@ def loop_rates(run):
     return {"loop_rates": rates, "loop_ends": ends}
 
 
-FIELDS = [mixing_last_loop, loop_rates]
+def qd_metrics(run):
+    """The QD metrics of the run's last metrics row (NaN for a task without fitness) and whether the
+    task has a fitness."""
+    last = run.metrics[-1] if run.metrics else {}
+    values = {k: last.get(k, math.nan) for k in ("qd_score", "max_fitness", "mean_fitness")}
+    values = {k: v if isinstance(v, float) else math.nan for k, v in values.items()}
+    return dict(values, has_fitness=run.has_fitness())
+
+
+FIELDS = [mixing_last_loop, loop_rates, qd_metrics]
 KEPT = []  # functions of a full run returning {name: number or text}, stored for studies
 
 
