@@ -23,6 +23,7 @@ import io
 import shlex
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 from . import ToolError, plot_cli, runs as runs_mod, tables
@@ -40,8 +41,8 @@ def parser():
                                  epilog=__doc__.split("\n\n", 2)[2], formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--environments", default="striker,bipedal-kicker",
                     help="comma list of the environment variants of the experiment directory (its subdirectories: "
-                         "striker, bipedal-walker, bipedal-kicker and their -mix-scale versions; default: "
-                         "striker,bipedal-kicker)")
+                         "striker, bipedal-walker, bipedal-kicker and their -mix-scale versions, or another directory "
+                         "there such as lp-sphere with --algorithms naming its files; default: striker,bipedal-kicker)")
     ap.add_argument("--algorithms", default=",".join(algs.experiments),
                     help="comma list of experiment file stems: the paper's 8 (the default), or any file every chosen "
                          "environment's directory has (cma-me for experiments/lp-sphere, say)")
@@ -58,7 +59,13 @@ def parser():
     ap.add_argument("--note", action="append", default=[],
                     help="a sentence for the report's notes (repeatable), e.g. what else used the machine")
     ap.add_argument("-o", "--output", default="report", help="report directory: runs/, figures/, REPORT.md")
-    ap.add_argument("--experiments", help="experiment directory (default: the one installed beside qdreport)")
+    ap.add_argument("--configs", choices=("reference", "paper-text"), default="reference",
+                    help="which experiment files: 'reference' (default), the reference code's configurations, which "
+                         "made the paper's figures (experiments/reference/); 'paper-text', the paper's text "
+                         "(experiments/<environment>/). experiments/README.md lists their differences; the report "
+                         "names the set")
+    ap.add_argument("--experiments", help="experiment directory holding the set (default: the one installed beside "
+                    "qdreport)")
     ap.add_argument("--qdrun", help="qdrun executable (default: $QDRUN, <prefix>/bin, PATH, build/bin)")
     ap.add_argument("--no-run", action="store_true", help="only plot and write the report from the runs there")
     ap.add_argument("--dry-run", action="store_true", help="print the sweep's plan and its estimated core-hours "
@@ -68,12 +75,30 @@ def parser():
     return ap
 
 
-def find_experiments(explicit):
+def config_set(directory):
+    """('reference' or 'paper-text', the run-name prefix) of a directory of experiment files, read from
+    its Striker PoMS file's experiment name ("reference-striker-poms" or "striker-poms")."""
+    with open(Path(directory) / "striker" / "poms.toml", "rb") as f:
+        name = tomllib.load(f).get("experiment", {}).get("name", "")
+    prefix = name[:-len("striker-poms")] if name.endswith("striker-poms") else ""
+    return ("reference" if prefix == "reference-" else "paper-text"), prefix
+
+
+def find_experiments(explicit, configs="paper-text"):
+    """The directory of the chosen set's files: DIR/reference or DIR itself, DIR the one given or the
+    experiments/ installed beside the tools."""
     share = tables.SHARE
     for c in (explicit, share / "experiments", share.parent / "experiments"):
-        if c and (Path(c) / "striker" / "poms.toml").exists():
-            return Path(c)
-    raise ToolError("cannot find the experiment files (--experiments DIR)")
+        if not c:
+            continue
+        for d in ((Path(c) / "reference", Path(c)) if configs == "reference" else (Path(c),)):
+            if (d / "striker" / "poms.toml").exists() and config_set(d)[0] == configs:
+                return d
+        if explicit:
+            break
+    where = f" in {explicit}" if explicit else ""
+    raise ToolError(f"cannot find the experiment files of the {configs} set{where} (--experiments DIR: a directory "
+                    f"with striker/poms.toml{', or with reference/striker/poms.toml' if configs == 'reference' else ''})")
 
 
 def main(argv=None):
@@ -91,13 +116,14 @@ def run(argv=None):
     qdrun = find_qdrun(args.qdrun)
     if not qdrun and not args.no_run:
         raise ToolError("qdrun not found (--qdrun or $QDRUN)")
-    exp_dir = find_experiments(args.experiments)
+    exp_dir = find_experiments(args.experiments, args.configs)
+    configs, prefix = config_set(exp_dir)
     known_envs = tables.experiment_variants(exp_dir)
     envs = [e for e in args.environments.split(",") if e]
     algs = [a for a in args.algorithms.split(",") if a]
-    for e in envs:
-        if e not in known_envs:
-            ap.error(f"unknown environment '{e}' (known: {', '.join(known_envs)})")
+    for e in envs:  # the paper's variants, or any directory of the set (a benchmark's: lp-sphere)
+        if e not in known_envs and not (exp_dir / e).is_dir():
+            ap.error(f"unknown environment '{e}' (known: {', '.join(known_envs)}, or a directory of {exp_dir})")
     for a in algs:  # the paper's algorithms, or any experiment file that every chosen environment has
         missing = [e for e in envs if not (exp_dir / e / f"{a}.toml").exists()]
         if missing and a not in tables.algorithms().experiments:
@@ -127,11 +153,12 @@ def run(argv=None):
     record = study.read(out) or {}
     header = dict(study.this_machine(), qdrun=version(qdrun), sweep=sweep_line, command=shown(sys.argv),
                   commands_from=shown.origin(), notes=args.note)
-    for hand in ("preface",):  # written by hand into study.toml: kept
+    for hand in ("title", "preface"):  # written by hand into study.toml: kept
         if record.get("header", {}).get(hand):
             header[hand] = record["header"][hand]
     selection = {"environments": envs, "algorithms": algs, "seeds": args.seeds, "evaluations": args.evaluations,
-                 "loops": args.loops, "max_epochs": args.max_epochs, "set": args.set}
+                 "loops": args.loops, "max_epochs": args.max_epochs, "set": args.set, "configs": configs,
+                 "prefix": prefix}
     study.write(out, {"selection": selection, "header": header, "addendum": record.get("addendum", [])})
     draw(out, kinds=None, qdrun=qdrun)
     write(out, selection, header, record.get("addendum", []))
@@ -155,7 +182,8 @@ def render(out, selection, header, addenda):
     runs_root = out / "runs"
     envs, algs = selection["environments"], selection["algorithms"]
     # Every run of the chosen environments and algorithms: the epoch caps are read from the runs themselves.
-    found = {(e, a): [summary.summarise(runs_mod.Run(d)) for d in sorted((runs_root / f"{e}-{a}").glob("seed-*"),
+    prefix = selection.get("prefix", "")  # the reference set's runs are named reference-<env>-<alg>
+    found = {(e, a): [summary.summarise(runs_mod.Run(d)) for d in sorted((runs_root / f"{prefix}{e}-{a}").glob("seed-*"),
                                                                           key=lambda d: d.name)
                       if runs_mod.is_run_dir(d)] for e in envs for a in algs}
     report = sections.Report(out=out, envs=envs, algs=algs, runs=found, figures=read_manifest(out / "figures"),

@@ -1,7 +1,6 @@
 """Run directories: finding them and reading what qdrun wrote (docs/user-guide.md, "Run
 directories"). Every reader takes a file plain or gzip-compressed (NAME or NAME.gz), as studies in
 results/ keep their larger files compressed."""
-import collections
 import gzip
 import io
 import math
@@ -231,14 +230,6 @@ class Run:
         if path:
             return Path(path).stem
         return self.config["experiment"].get("name") or f"{self.representation}/{self.mutator}"
-
-    @property
-    def row_stride(self):
-        """Iterations between consecutive rows of metrics.csv within a loop: 1, or more for a study
-        that kept every k-th row (share/qdresults --rows)."""
-        steps = collections.Counter(int(b["iteration"] - a["iteration"]) for a, b in zip(self.metrics, self.metrics[1:])
-                                    if a["loop"] == b["loop"] and b["iteration"] > a["iteration"])
-        return max(steps, key=lambda k: (steps[k], k)) if steps else 1  # the most common (a loop's end may be nearer)
 
     def has_fitness(self):
         """Whether the run's task has a fitness: its QD metrics (metrics.csv's qd_score) are numbers."""

@@ -1,5 +1,6 @@
 """Statistics over seeds as the reference's plots compute them: numpy's 'nearest' percentiles, the
-coverage curve as a step function of evaluations, moving means."""
+coverage curve as a step function of evaluations, moving means, and the mixing ratio aggregated as
+the paper's figures aggregate it (paper_mixing_ratio)."""
 import math
 
 import numpy as np
@@ -70,3 +71,52 @@ def moving_mean(values, window):
 def mean(values):
     values = [v for v in values if not (isinstance(v, float) and math.isnan(v))]
     return sum(values) / len(values) if values else math.nan
+
+
+def per_evaluation(run, key="mixing_ratio"):
+    """A run's `key` at every evaluation, as the paper's plotting code lays it out: each metrics row's
+    value repeated over the evaluations of its batch; the rows before the first value (loop 0, which
+    has none) take the first value."""
+    values, counts, done = [], [], 0
+    for m in run.metrics:
+        v = m.get(key, math.nan)
+        values.append(v if isinstance(v, float) else math.nan)
+        counts.append(max(0, int(m["evaluations"]) - done))
+        done = int(m["evaluations"])
+    v = np.array(values, dtype=float)
+    known = np.flatnonzero(~np.isnan(v))
+    if known.size == 0:
+        return None
+    v[:known[0]] = v[known[0]]
+    return np.repeat(v, counts)
+
+
+def centred_mean(x, window):
+    """The centred moving mean of `x` over `window` points, its ends padded with the first and last
+    values so that the result has len(x) points (the paper's figures smooth this way)."""
+    x = np.asarray(x, dtype=float)
+    if window <= 1 or x.size == 0:
+        return x
+    padded = np.concatenate([np.full(window // 2, x[0]), x, np.full(window // 2 - 1 + window % 2, x[-1])])
+    c = np.concatenate([[0.0], np.cumsum(padded)])
+    return (c[window:] - c[:-window]) / window
+
+
+def paper_mixing_ratio(runs, window=10000, key="mixing_ratio"):
+    """(evaluations, mean, std): the mixing ratio as the paper's figures draw it. Per evaluation, the
+    mean and standard deviation over the seeds that reached it of each run's per_evaluation() value;
+    then a centred moving mean over `window` evaluations (the band's edges, clipped to [0, 1],
+    smoothed alike; std returned as half the smoothed band). None when no run has a value."""
+    series = [s for s in (per_evaluation(r, key) for r in runs) if s is not None]
+    if not series:
+        return None
+    n = max(len(s) for s in series)
+    stack = np.full((len(series), n), np.nan)
+    for i, s in enumerate(series):
+        stack[i, :len(s)] = s
+    reached = (~np.isnan(stack)).sum(axis=0)
+    total = np.nansum(stack, axis=0)
+    mean = total / reached
+    std = np.sqrt(np.nansum((stack - mean) ** 2, axis=0) / reached)
+    low, high = (centred_mean(np.clip(b, 0, 1), window) for b in (mean - std, mean + std))
+    return np.arange(1, n + 1), centred_mean(mean, window), (high - low) / 2

@@ -89,6 +89,7 @@ class Environments:
         self.suffixes = table.get("suffix", [])
         self.by_type = {e["type"]: e for e in table.get("environment", [])}
         self.descriptors = {d["type"]: d for d in table.get("descriptor", [])}
+        self.paper_figures = {f["variant"]: f for f in table.get("paper_figure", [])}
 
     def variant(self, env):
         """The name of a run's environment ([environment] table of config.toml) as the directories
@@ -129,9 +130,37 @@ def environments(share=SHARE):
 
 
 def experiment_variants(experiments_dir):
-    """The environment variants of an experiment directory: its subdirectories holding the files of
-    the algorithm table (experiments/<variant>/<experiment>.toml), test fixtures (smoke) left out."""
+    """The environment variants of an experiment directory: its subdirectories holding a file for
+    every algorithm of the table (experiments/<variant>/<experiment>.toml), the paper's comparison;
+    test fixtures (smoke) and benchmarks with other algorithms (lp-sphere) left out."""
     stems = set(algorithms().experiments)
     root = Path(experiments_dir)
     return sorted(d.name for d in root.iterdir()
-                  if d.is_dir() and d.name != "smoke" and stems & {p.stem for p in d.glob("*.toml")})
+                  if d.is_dir() and d.name != "smoke" and stems <= {p.stem for p in d.glob("*.toml")})
+
+
+@functools.lru_cache(maxsize=None)
+def paper_curves(share=SHARE):
+    """share/paper-curves.csv as {(figure, algorithm, quantity): (evaluations array, values array)}."""
+    import csv
+    import numpy as np
+    path = Path(share) / "paper-curves.csv"
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f))
+    except OSError as e:
+        raise ToolError(f"cannot read {path}: {e.strerror} (it is installed beside the qdtools package)") from e
+    curves = {}
+    for r in rows:
+        curves.setdefault((r["figure"], r["algorithm"], r["quantity"]), []).append((int(r["evaluations"]),
+                                                                                  float(r["value"])))
+    return {k: (np.array([e for e, _ in v]), np.array([x for _, x in v])) for k, v in curves.items()}
+
+
+def paper_value(figure, algorithm, evaluations, quantity="coverage_percent", share=SHARE):
+    """The paper's figure's value at `evaluations` (linear between its points), or None outside them."""
+    import numpy as np
+    curve = paper_curves(share).get((figure, algorithm, quantity))
+    if curve is None or evaluations < curve[0][0] or evaluations > curve[0][-1]:
+        return None
+    return float(np.interp(evaluations, *curve))

@@ -5,12 +5,12 @@ source "$(dirname "$0")/lib.sh"
 qdrun=$1 src=$2 out=$3
 rm -rf "$out" "$out-dry" "$out.estimate"
 # --dry-run: the plan and its estimate, nothing written.
-/usr/bin/python3 "$src/share/qdreport" --environments striker --algorithms iso --seeds 1 --loops 2 \
+/usr/bin/python3 "$src/share/qdreport" --configs paper-text --environments striker --algorithms iso --seeds 1 --loops 2 \
   -o "$out-dry" --qdrun "$qdrun" --dry-run > "$out.log" 2>&1 || { cat "$out.log"; exit 1; }
 grep -Eq "^  striker-iso/seed-1 +[0-9.]+ core-h: 22000 evaluations" "$out.log" || { cat "$out.log"; exit 1; }
 grep -q "^sweep: estimated" "$out.log"
 [ ! -e "$out-dry" ] || { echo "qdreport --dry-run created $out-dry"; exit 1; }
-/usr/bin/python3 "$src/share/qdreport" --environments striker --algorithms poms,iso,ps-uniform --seeds 1,2,3 \
+/usr/bin/python3 "$src/share/qdreport" --configs paper-text --environments striker --algorithms poms,iso,ps-uniform --seeds 1,2,3 \
   --loops 2 --set experiment.iterations=2 --max-epochs 5 --note "a test note" -o "$out" --qdrun "$qdrun" \
   > "$out.log" 2>&1 \
   || { cat "$out.log"; exit 1; }
@@ -90,7 +90,7 @@ grep -q "^evaluations = \[0, $middle\]$" "$report" && grep -q "^offspring_time =
 grep -q "\[cost\]: loop 0's x" "$out.log"
 # Run again: every run is complete; the estimate stays the first one, the invocation is added.
 cp "$out/estimate.txt" "$out.estimate"
-/usr/bin/python3 "$src/share/qdreport" --environments striker --algorithms poms,iso,ps-uniform --seeds 1,2,3 \
+/usr/bin/python3 "$src/share/qdreport" --configs paper-text --environments striker --algorithms poms,iso,ps-uniform --seeds 1,2,3 \
   --loops 2 --set experiment.iterations=2 --max-epochs 5 -o "$out" --qdrun "$qdrun" > "$out.log" 2>&1 \
   || { cat "$out.log"; exit 1; }
 cmp "$out.estimate" "$out/estimate.txt"
@@ -99,7 +99,7 @@ cmp "$out.estimate" "$out/estimate.txt"
 grep -q "^The sweep ran in 2 invocations of qdreport" "$report"
 # Unfinished runs (a sweep still going): their row says so and how far they got; no NaN anywhere.
 for s in 1 2 3; do echo running > "$out/runs/striker-ps-uniform/seed-$s/status"; done
-/usr/bin/python3 "$src/share/qdreport" --no-run --environments striker --algorithms poms,iso,ps-uniform \
+/usr/bin/python3 "$src/share/qdreport" --configs paper-text --no-run --environments striker --algorithms poms,iso,ps-uniform \
   --seeds 1,2,3 --loops 2 -o "$out" --qdrun "$qdrun" > "$out.log" 2>&1 || { cat "$out.log"; exit 1; }
 grep -q "^| ps-uniform | 0/3 | [0-9]* so far | none complete | | | | | | - |$" "$report" \
   || { grep "^| ps-uniform |" "$report"; exit 1; }
@@ -110,7 +110,7 @@ for s in 1 2 3; do echo complete > "$out/runs/striker-ps-uniform/seed-$s/status"
 # and per-epoch losses, and REPORT.md made again from those files alone, without qdrun (no --qdrun,
 # nothing on PATH), with the same tables, a hand-written addendum in its place, and the figures the
 # files cannot give again (trajectories, latent codes, losses) as they were drawn.
-/usr/bin/python3 "$src/share/qdreport" --no-run --environments striker --algorithms poms,iso,ps-uniform \
+/usr/bin/python3 "$src/share/qdreport" --configs paper-text --no-run --environments striker --algorithms poms,iso,ps-uniform \
   --seeds 1,2,3 --loops 2 --max-epochs 5 -o "$out" --qdrun "$qdrun" > "$out.log" 2>&1 || { cat "$out.log"; exit 1; }
 printf '\n[[addendum]]\nafter = "## striker"\ntext = "Written by hand."\n' >> "$out/study.toml"
 s=$out-study
@@ -142,7 +142,7 @@ PY
 # the same command then resumes them.
 t=$out-term
 rm -rf "$t"
-term_cmd=(/usr/bin/python3 "$src/share/qdreport" --environments striker --algorithms iso --seeds 1 --loops 40
+term_cmd=(/usr/bin/python3 "$src/share/qdreport" --configs paper-text --environments striker --algorithms iso --seeds 1 --loops 40
           --set experiment.iterations=2 -o "$t" --qdrun "$qdrun")
 "${term_cmd[@]}" > "$t.log" 2>&1 &
 pid=$!
@@ -161,7 +161,25 @@ grep -vq "^complete" "$t/runs/striker-iso/seed-1/status"
 grep -q "^complete" "$t/runs/striker-iso/seed-1/status"
 grep -q "^The sweep ran in 2 invocations of qdreport, [0-9.]* h of wall time in all" "$t/REPORT.md"
 
-# No epoch cap by default, and the Walker's coverage both ways: % of its 12 500 cells and of 50 000.
+# The diagnostics: PoMS's loop-1 epochs as its training.csv has them, its elites' median parameter norm.
+read -r ep1 norm < <(/usr/bin/python3 - "$out/runs/striker-poms/seed-1" <<'PY'
+import csv, sys, numpy as np
+d = sys.argv[1]
+ep = [r["epochs"] for r in csv.DictReader(open(f"{d}/training.csv"))]
+rows = list(csv.reader(open(f"{d}/archive.csv")))
+first = rows[0].index("solution_0")
+norms = [np.linalg.norm(np.array(r[first:], dtype=float)) for r in rows[1:]]
+print(ep[1], f"{np.median(norms):.2f}")
+PY
+)
+grep -q "^## Diagnostics: mixing ratio, training, parameter norms$" "$report"
+grep -q "^| PoMS | 1 | [0-9]* | [0-9]* | $ep1 | .* | $norm | [0-9.]* |$" "$report" \
+  || { echo "PoMS seed 1: loop-1 epochs $ep1, median norm $norm not in the diagnostics"; grep "^| PoMS | 1 |" "$report"; exit 1; }
+grep -q "^| PoMS | 3 | [0-9.]* ([0-9]*) |$" "$report"  # its mixing ratio, the paper's aggregation over 3 seeds
+grep -q "^- configuration set: the paper's text" "$report"
+
+# The reference set by default (runs named reference-<env>-<alg>); no epoch cap by default, and the
+# Walker's coverage both ways: % of its 12 500 cells and of 50 000.
 w=$out-walker
 rm -rf "$w"
 /usr/bin/python3 "$src/share/qdreport" --environments bipedal-walker --algorithms iso --seeds 1 --loops 2 \
@@ -169,7 +187,8 @@ rm -rf "$w"
   --qdrun "$qdrun" > "$w.log" 2>&1 || { cat "$w.log"; exit 1; }
 grep -q "^- autoencoder epochs: .*no cap" "$w/REPORT.md"
 ! grep -qi "capped" "$w/REPORT.md"
-elites=$(($(wc -l < "$w/runs/bipedal-walker-iso/seed-1/archive.csv") - 1))
+grep -q "^- configuration set: the reference code's configurations" "$w/REPORT.md"
+elites=$(($(wc -l < "$w/runs/reference-bipedal-walker-iso/seed-1/archive.csv") - 1))
 read -r p1 p2 < <(/usr/bin/python3 -c "print(f'{100 * $elites / 12500:.2f} {100 * $elites / 50000:.2f}')")
 grep -q "| coverage % of 12500 | coverage % of 50000 |" "$w/REPORT.md"
 grep -q "^| MAPE-Iso | 1/1 | [0-9]* | $elites ($elites-$elites) | $p1 ($p1-$p1) | $p2 ($p2-$p2) |" "$w/REPORT.md" \

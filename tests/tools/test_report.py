@@ -54,7 +54,7 @@ class Regenerate(unittest.TestCase):
         self.assertRegex(text, r"\| PoMS \| 3/3 .* \| 0\.25 \| 20000 \(paper\) \|")
         self.assertIn("![coverage striker](figures/coverage-striker.png)", text)
         body = text.split("## striker", 1)[1]
-        self.assertIn("</details>\n\nAdded under striker.\n\n## Time per million evaluations", body)
+        self.assertIn("</details>\n\nAdded under striker.\n\n## Diagnostics", body)
         self.assertTrue((out / "figures" / "coverage-striker.png").exists())
         self.assertFalse((out / "figures" / "coverage-striker.svg").exists())  # a study keeps PNGs
         self.assertIn("\nQD metrics: no task fitness (the environment declares none", body)

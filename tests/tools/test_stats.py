@@ -49,5 +49,34 @@ class Coverage(unittest.TestCase):
         self.assertEqual(stats.loop_ends(b), [20, 30, 60])
 
 
+
+class PaperMixingRatio(unittest.TestCase):
+    """The mixing ratio as the paper's figures aggregate it, against the same steps written out with
+    numpy: each row's value repeated over its batch, loop 0 given the first value, the mean over the
+    seeds that reached an evaluation, then a centred window with padded ends (np.convolve 'valid')."""
+
+    def test_per_evaluation_repeats_rows_and_fills_loop_zero(self):
+        r = runs.Run(fixtures.write_run(fixtures.tmpdir(self), metrics=[(0, 4, 3), (1, 6, 4, 0.5), (1, 9, 5, 0.25)]))
+        self.assertEqual(stats.per_evaluation(r).tolist(), [0.5] * 6 + [0.25] * 3)
+
+    def test_mean_over_seeds_then_centred_window(self):
+        root = fixtures.tmpdir(self)
+        a = runs.Run(fixtures.write_run(root, seed=1, metrics=[(0, 4, 3), (1, 8, 4, 1.0), (2, 12, 5, 0.0)]))
+        b = runs.Run(fixtures.write_run(root, seed=2, metrics=[(0, 4, 3), (1, 8, 4, 0.5)]))  # stopped at 8
+        ev, mean, half_band = stats.paper_mixing_ratio([a, b], window=4)
+        raw = np.array([0.75] * 8 + [0.0] * 4)  # seeds averaged where both ran, seed 1 alone after
+        w = 4
+        padded = np.concatenate([np.full(w // 2, raw[0]), raw, np.full(w // 2 - 1, raw[-1])])
+        want = np.convolve(padded, np.ones(w) / w, mode="valid")
+        self.assertEqual(ev.tolist(), list(range(1, 13)))
+        np.testing.assert_allclose(mean, want, rtol=0, atol=1e-12)
+        self.assertAlmostEqual(mean[0], 0.75)
+        self.assertAlmostEqual(mean[-1], 0.0)
+        self.assertAlmostEqual(half_band[0], 0.25)  # std over {1.0, 0.5}, clipped band smoothed alike
+
+    def test_none_without_a_ratio(self):
+        r = runs.Run(fixtures.write_run(fixtures.tmpdir(self)))
+        self.assertIsNone(stats.paper_mixing_ratio([r]))
+
 if __name__ == "__main__":
     unittest.main()

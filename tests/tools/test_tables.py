@@ -22,11 +22,10 @@ class Variants(unittest.TestCase):
         self.assertEqual(envs.variant({"type": "bipedal-walker"}), "bipedal-walker")
         self.assertEqual(envs.variant({"type": "point-mass", "mix_scale": True}), "point-mass-mix-scale-companion")
 
-    def test_experiment_variants_are_the_directories_holding_the_papers_algorithms(self):
-        # The CMA-ME benchmark's directories hold PoMS and Iso+LineDD files beside their own (cma-me, ...).
+    def test_experiment_variants_are_the_directories_of_the_paper(self):
         self.assertEqual(tables.experiment_variants(fixtures.SOURCE / "experiments"),
                          ["bipedal-kicker", "bipedal-kicker-mix-scale", "bipedal-walker", "bipedal-walker-mix-scale",
-                          "lp-rastrigin", "lp-sphere", "striker", "striker-mix-scale"])
+                          "striker", "striker-mix-scale"])
 
     def test_styles_tell_every_algorithm_of_a_figure_apart(self):
         algs = tables.algorithms()
@@ -83,6 +82,29 @@ class Layout(unittest.TestCase):
         bins = g.unravel([cell])
         self.assertEqual(maps.position(bins, g.shape, [0, 2]).tolist(), [2 * 6 + 4])
         self.assertEqual(maps.position(bins, g.shape, [1, 3]).tolist(), [3 * 7 + 5])
+
+
+class PaperCurves(unittest.TestCase):
+    """share/paper-curves.csv read back: known points, linear between them, None outside; every
+    figure environments.toml names and every algorithm in it exists in the tables."""
+
+    def test_points_and_interpolation(self):
+        share = fixtures.tmpdir(self)
+        (share / "paper-curves.csv").write_text("figure,algorithm,quantity,evaluations,value,visibility\n"
+                                                "F,A,coverage_percent,10000,1.0,visible\n"
+                                                "F,A,coverage_percent,20000,3.0,hidden\n")
+        self.assertEqual(tables.paper_value("F", "A", 10000, share=share), 1.0)
+        self.assertEqual(tables.paper_value("F", "A", 15000, share=share), 2.0)
+        self.assertIsNone(tables.paper_value("F", "A", 30000, share=share))
+        self.assertIsNone(tables.paper_value("F", "B", 10000, share=share))
+
+    def test_the_installed_table_names_known_figures_and_algorithms(self):
+        curves = tables.paper_curves()
+        figures = {k[0] for k in curves}
+        self.assertTrue({f["figure"] for f in tables.environments().paper_figures.values()} <= figures)
+        self.assertEqual({k[1] for k in curves}, set(tables.algorithms().order))
+        # The Walker figure's PoMS curve, read at the published 100 000 evaluations.
+        self.assertAlmostEqual(tables.paper_value("BipedalWalker", "PoMS", 100000), 3.489)
 
 
 if __name__ == "__main__":

@@ -297,6 +297,7 @@ std::string describe_declarations(const PluginInfo& info) {
   for (std::uint32_t i = 0; i < info.component_count; ++i) {
     const ComponentInfo& c = info.components[i];
     put_u32(out, static_cast<std::uint32_t>(c.kind));
+    put_u32(out, c.flags);
     put_text(out, c.name);
     put_text(out, c.summary);
     put_u32(out, c.param_count);
@@ -326,6 +327,7 @@ std::shared_ptr<ProbeCopy> read_declarations(MessageReader& in) {
   copy->components.resize(count);
   for (ComponentInfo& c : copy->components) {
     c.kind = static_cast<Kind>(in.number<std::uint32_t>());
+    c.flags = in.number<std::uint32_t>();
     c.name = in.text(copy->strings);
     c.summary = in.text(copy->strings);
     c.param_count = in.number<std::uint32_t>();
@@ -651,6 +653,7 @@ Component* Registry::construct(const ComponentEntry& entry, const Config& config
                 std::strcmp(now.plugin_name, plugin.info->plugin_name) == 0;
     for (std::uint32_t i = 0; same && i < now.component_count; ++i)
       same = now.components[i].kind == plugin.info->components[i].kind &&
+             now.components[i].flags == plugin.info->components[i].flags &&
              std::strcmp(now.components[i].name, plugin.info->components[i].name) == 0;
     if (!same)
       throw PluginError(plugin.path + ": changed on disk since qdrun started (it declares other components now)");

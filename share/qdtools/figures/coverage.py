@@ -2,10 +2,10 @@
 a marker at every loop boundary, and below it the mixing ratio of the algorithms the table marks
 (the share of offspring made in parameter space, as the paper's lower panel)."""
 import math
-import warnings
 
 import numpy as np
 from matplotlib.patches import Patch
+from matplotlib.ticker import FuncFormatter
 
 from .. import stats, tables
 from .common import legend_below, stem, with_cap
@@ -78,32 +78,35 @@ def plot(out, env, groups):
         sec.set_ylabel(f"% of {index_space} ({index_label})", fontsize=8)
     bottom = ax
     if axr is not None:
-        axr.set_ylabel("mixing ratio\n(" + ", ".join(ratio_names) + ")", fontsize=8)
+        axr.set_ylabel("mixing ratio", fontsize=8)
+        axr.set_title(f"mixing ratio ({', '.join(ratio_names)}), as the paper's figures: mean over seeds at each "
+                      f"evaluation,\ncentred {RATIO_WINDOW}-evaluation moving average", fontsize=7, loc="left")
         axr.set_ylim(-0.05, 1.05)
         axr.grid(alpha=0.3)
         bottom = axr
-    bottom.set_xlabel(f"evaluations (mixing ratio: {RATIO_WINDOW}-evaluation moving average, mean over seeds)"
-                      if ratio_names else "evaluations")
-    bottom.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
+    bottom.set_xlabel("evaluations")
+    bottom.xaxis.set_major_formatter(FuncFormatter(evaluations_tick))
     rows = math.ceil(len(labels) / 2)
     legend_below(fig, handles, labels, ncol=2)
     fig.subplots_adjust(left=0.1, right=0.9 if index_space else 0.97, top=0.91, bottom=0.1 + 0.028 * rows,
-                        hspace=0.08)
+                        hspace=0.25)
     out.save(fig, stem("coverage", env), "coverage", data, everyone, environment=env)
 
 
-def mixing_ratio(runs):
-    """(evaluations, mean, std) over seeds of each run's moving average of its mixing ratio over
-    RATIO_WINDOW evaluations, or None when no run has one."""
-    ratios = []
-    for r in runs:
-        window = max(1, round(RATIO_WINDOW / (r.batch * r.row_stride)))  # a study may keep every k-th row
-        ratios.append(stats.moving_mean([m.get("mixing_ratio", math.nan) for m in r.metrics], window))
-    n = min(len(v) for v in ratios)
-    stack = np.array([v[:n] for v in ratios])
-    if np.all(np.isnan(stack)):
+def evaluations_tick(x, _pos=None):
+    """An evaluation count as a tick label: 0, 500, 20k, 1.5M."""
+    if abs(x) >= 1e6:
+        return f"{x / 1e6:g}M"
+    return f"{x / 1e3:g}k" if abs(x) >= 1e3 else f"{x:g}"
+
+
+def mixing_ratio(runs, points=2000):
+    """(evaluations, mean, std) of the runs' mixing ratio aggregated as the paper's figures do
+    (stats.paper_mixing_ratio: per evaluation, mean over seeds, then a centred RATIO_WINDOW moving
+    mean), thinned to about `points` points for drawing; None when no run has one."""
+    ratio = stats.paper_mixing_ratio(runs, RATIO_WINDOW)
+    if ratio is None:
         return None
-    ev = np.array([m["evaluations"] for m in runs[0].metrics[:n]])
-    with warnings.catch_warnings():  # rows before the first ratio (loop 0) are all NaN
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return ev, np.nanmean(stack, axis=0), np.nanstd(stack, axis=0)
+    ev, mean, std = ratio
+    keep = np.unique(np.concatenate([np.arange(0, ev.size, max(1, ev.size // points)), [ev.size - 1]]))
+    return ev[keep], mean[keep], std[keep]

@@ -38,10 +38,16 @@ class Report:
                 return infos[0]["algorithm"]
         return tables.algorithms().by_experiment.get(alg, {}).get("name", alg)
 
+    def run_name(self, env, alg):
+        """The runs' directory name under runs/: the experiment's name, which the reference set
+        prefixes with "reference-"."""
+        return self.selection.get("prefix", "") + f"{env}-{alg}"
+
     def figures_of(self, kind, env, alg=None):
         """PNG figures of `kind` for an environment (and algorithm), in the order qdplot wrote them;
         entries of an older qdplot.json without names are matched by their runs."""
         name = self.name(alg) if alg else None
+        r_algs = [alg] if alg else self.algs
         dirs = {str(s["dir"].resolve()) for s in (self.runs[(env, alg)] if alg else
                                                   [s for a in self.algs for s in self.runs[(env, a)]])}
         out = []
@@ -49,7 +55,9 @@ class Report:
             if f["kind"] != kind or f["format"] != "png":
                 continue
             if f.get("environment") is not None:
-                if f["environment"] == env and (alg is None or f.get("algorithm") == name):
+                # qdplot names the environment by its variant, which the runs' observation may qualify.
+                variants = {env} | {s["run"].env for a in r_algs for s in self.runs[(env, a)]}
+                if f["environment"] in variants and (alg is None or f.get("algorithm") == name):
                     out.append(f["file"])
             elif any(str(_resolve(self.out, r)) in dirs for r in f.get("runs", [])):
                 out.append(f["file"])
@@ -91,6 +99,18 @@ def cap_caption(summaries):
             "stopping, so PoMS, PoMS-no-jacobian and MAPE-DDE are handicapped in this table.")
 
 
+# The experiment files a report ran (qdreport --configs), as the header names them.
+CONFIG_SETS = {
+    "reference": "the reference code's configurations, which made the paper's figures (experiments/reference/; "
+                 "experiments/README.md, \"The reference configuration set\", lists how they differ from the "
+                 "paper's text)",
+    "paper-text": "the paper's text (experiments/<environment>/; experiments/README.md lists how the reference "
+                  "code's configurations differ)",
+}
+# Evaluation counts at which the diagnostics section reads the mixing ratio.
+RATIO_AT = (20000, 50000, 100000, 200000, 300000, 500000, 1000000, 2000000)
+
+
 # ---- sections ---------------------------------------------------------------------------------
 
 def title(r):
@@ -119,6 +139,8 @@ def header(r):
                                          "so AE-based algorithms are handicapped in this report; every table and "
                                          "figure they affect says so)" if caps else
                                          "as in the experiment files (20 000 per loop, early stopping; no cap)")]
+    if sel.get("configs"):
+        lines.append("- configuration set: " + CONFIG_SETS.get(sel["configs"], sel["configs"]))
     if sel.get("set"):
         lines.append("- extra settings: " + ", ".join(f"`{s}`" for s in sel["set"]))
     if h.get("sweep"):
@@ -272,8 +294,9 @@ def cost(r):
     compared = 0
     for env in r.envs:
         for a in r.algs:
-            pairs = [(per_run[f"{env}-{a}/seed-{s['seed']}"], s["wall"] / 3600) for s in r.runs[(env, a)]
-                     if s["status"] == "complete" and f"{env}-{a}/seed-{s['seed']}" in per_run and s["wall"] > 0]
+            key = r.run_name(env, a) + "/seed-"
+            pairs = [(per_run[f"{key}{s['seed']}"], s["wall"] / 3600) for s in r.runs[(env, a)]
+                     if s["status"] == "complete" and f"{key}{s['seed']}" in per_run and s["wall"] > 0]
             if not pairs:
                 continue
             compared += len(pairs)
@@ -346,11 +369,129 @@ def lengthening(r):
     return lines
 
 
+PAPER_AT = (100000, 200000, 300000, 500000, 1000000, 2000000)
+
+
+def coverage_at(summary, evaluations, of):
+    """A run's coverage in % of `of` cells after `evaluations` (its last row at or before), None when
+    the run stopped before."""
+    rows = summary["run"].metrics
+    if not rows or rows[-1]["evaluations"] < evaluations:
+        return None
+    elites = [m["elites"] for m in rows if m["evaluations"] <= evaluations]
+    return 100.0 * (elites[-1] if elites else 0) / of
+
+
+def paper(r):
+    """Per variant with a paper figure (environments.toml [[paper_figure]]): the median over seeds
+    of our coverage against the paper's curve at the same evaluations (share/paper-curves.csv)."""
+    envs = tables.environments()
+    lines = []
+    for env in r.envs:
+        env_runs = [s for a in r.algs for s in r.runs[(env, a)]]
+        variants = {s["run"].env for s in env_runs}
+        figure = next((envs.paper_figures[v] for v in sorted(variants) if v in envs.paper_figures), None)
+        if not figure or len(variants) != 1:
+            continue
+        rows, used = [], set()
+        for a in r.algs:
+            cells = []
+            for e in PAPER_AT:
+                ours = []
+                for s in r.runs[(env, a)]:
+                    of = s["index_space"] if figure["percent_of"] == "index_space" else s["cells"]
+                    c = coverage_at(s, e, of) if of else None
+                    if c is not None:
+                        ours.append(c)
+                theirs = tables.paper_value(figure["figure"], r.name(a), e)
+                if ours and theirs:
+                    used.add(e)
+                    med = stats.nearest(ours, 50)
+                    cells.append(f"{med:.2f} / {theirs:.2f} = {med / theirs:.2f} ({len(ours)})")
+                else:
+                    cells.append("")
+            rows.append((r.name(a), cells))
+        used = [e for e in PAPER_AT if e in used]
+        if not used:
+            continue
+        if not lines:
+            lines = ["", "## Against the paper's figures", "",
+                     "Coverage read off the paper's figures (the median curves of the coverage figures the authors "
+                     "publish with their code, digitised every 10 000 evaluations: share/paper-curves.csv; "
+                     "results/paper-curves/ has the digitiser and its check) against ours at the same number of "
+                     "evaluations: the median over the seeds whose runs reached it (their count in brackets), "
+                     "ours / paper = ratio."]
+        what = ("% of " + str(next(s["index_space"] for s in env_runs)) if figure["percent_of"] == "index_space"
+                else "% of the grid's cells")
+        made = {"reference": "the reference code's configurations", "paper-text": "the paper's text"}.get(
+            figure["configs"], figure["configs"])
+        ran = r.selection.get("configs")
+        note = f"; this report ran {'the same' if ran == figure['configs'] else 'another'} set" if ran else ""
+        lines += ["", f"{env} ({what}; the figure was made with {made}{note}):", "",
+                  "| algorithm | " + " | ".join(f"at {e:,}".replace(",", " ") for e in used) + " |",
+                  "|---|" + "---|" * len(used)]
+        lines += [f"| {name} | " + " | ".join(c for c, e in zip(cells, PAPER_AT) if e in used) + " |"
+                  for name, cells in rows]
+    return lines
+
+
+def diagnostics(r):
+    """Per environment: the mixing ratio as the paper's figures aggregate it, the representation's
+    epochs per loop and the final elites' parameter norms: what tells whether the latent branch of
+    PoMS works in the regime the paper describes."""
+    algs = tables.algorithms()
+    lines = []
+    for env in r.envs:
+        rows_ratio, rows_runs = [], []
+        for a in r.algs:
+            infos = r.runs[(env, a)]
+            if not infos:
+                continue
+            if algs.by_experiment.get(a, {}).get("mixing_ratio"):
+                ratio = stats.paper_mixing_ratio([s["run"] for s in infos])
+                if ratio is not None:
+                    ev, mean, _ = ratio
+                    rows_ratio.append((r.name(a), len(infos), [fmt(float(mean[e - 1]), 3) if e <= ev.size else ""
+                                                               for e in RATIO_AT],
+                                       f"{fmt(float(mean[-1]), 3)} ({ev.size})"))
+            for s in infos:
+                epochs = (s.get("epochs_per_loop") or []) if s["autoencoder"] else []  # PCA's are 0
+                later = epochs[1:]
+                rows_runs.append(f"| {r.name(a)} | {s['seed']} | {s['evaluations']} | "
+                                 f"{epochs[0] if epochs else '-'} | {later[0] if later else '-'} | "
+                                 f"{int(stats.nearest(later, 50)) if later else '-'} | "
+                                 f"{f'{min(later)}-{max(later)}' if later else '-'} | "
+                                 f"{fmt(s.get('parameter_norm_median', math.nan), 2)} | "
+                                 f"{fmt(s.get('parameter_norm_max', math.nan), 2)} |")
+        if not rows_ratio and not any(s.get("epochs_per_loop") for a in r.algs for s in r.runs[(env, a)]):
+            continue
+        if not lines:
+            lines = ["", "## Diagnostics: mixing ratio, training, parameter norms", "",
+                     "The mixing ratio is the share of a batch's offspring made in parameter space, aggregated as "
+                     "the paper's figures aggregate it: each batch's value repeated over its evaluations (loop 0 "
+                     "given the first value), the mean over the seeds that reached each evaluation, then a centred "
+                     "moving average over 10 000 evaluations. Epochs are the representation's training epochs per "
+                     "loop (training.csv; loop 0 trains on the initial samples). Parameter norms are the Euclidean "
+                     "norms of the final elites' parameter vectors (archive.csv), median and largest."]
+        used = [e for e in RATIO_AT if any(cells[RATIO_AT.index(e)] for _, _, cells, _ in rows_ratio)]
+        lines += ["", f"### {env}", ""]
+        if rows_ratio:
+            lines += ["| algorithm | runs | " + "".join(f"mixing ratio at {e:,} | ".replace(",", " ") for e in used) +
+                      "at the last evaluation (evaluations) |", "|---|---|" + "---|" * (len(used) + 1)]
+            lines += [f"| {name} | {n} | " + "".join(cells[RATIO_AT.index(e)] + " | " for e in used) + end + " |"
+                      for name, n, cells, end in rows_ratio]
+            lines.append("")
+        lines += ["| algorithm | seed | evaluations | epochs, loop 0 | epochs, loop 1 | epochs, loops >= 1 (median) | "
+                  "epochs, loops >= 1 (min-max) | elite parameter norm (median) | elite parameter norm (max) |",
+                  "|---|---|---|---|---|---|---|---|---|"] + rows_runs
+    return lines
+
+
 def revisions(r):
     return ["", f"Git revisions of the runs: {', '.join(sorted({s['git'] for s in r.every_run}))}."]
 
 
-SECTIONS = [title, header, environments, time_per_million, cost, lengthening, revisions]
+SECTIONS = [title, header, environments, paper, diagnostics, time_per_million, cost, lengthening, revisions]
 
 
 def render(r):

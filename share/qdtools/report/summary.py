@@ -11,8 +11,10 @@ logs) goes into KEPT instead: qdresults computes it from the full run when it co
 stores it in the copy's summary.toml, from which summarise() reads it back."""
 import math
 
+import numpy as np
+
 from .. import tables
-from ..runs import locate, read_toml
+from ..runs import locate, open_text, read_csv, read_toml
 
 SUMMARY = "summary.toml"  # in a study's run directory: the KEPT quantities of the full run
 
@@ -76,8 +78,39 @@ def qd_metrics(run):
     return dict(values, has_fitness=run.has_fitness())
 
 
-FIELDS = [mixing_last_loop, loop_rates, qd_metrics]
-KEPT = []  # functions of a full run returning {name: number or text}, stored for studies
+def training_epochs(run):
+    """The representation's epochs per loop (training.csv), [] when it trains nothing."""
+    path = run.file("training.csv")
+    if path is None:
+        return {"epochs_per_loop": []}
+    rows = read_csv(path)
+    return {"epochs_per_loop": [int(r["epochs"]) for r in rows
+                                if isinstance(r.get("epochs"), (int, float)) and not math.isnan(r["epochs"])]}
+
+
+def elite_parameter_norms(run):
+    """The median and maximum Euclidean norm of the final elites' parameter vectors (archive.csv's
+    solution_* columns), read a row at a time: the archive can be a hundred megabytes."""
+    path = run.file("archive.csv")
+    if path is None:
+        return {}
+    norms = []
+    with open_text(path) as f:
+        header = f.readline().rstrip("\n").split(",")
+        first = next((k for k, name in enumerate(header) if name.startswith("solution_")), None)
+        if first is None:
+            return {}
+        for line in f:
+            values = np.array(line.rstrip("\n").split(",")[first:], dtype=float)
+            norms.append(float(np.sqrt(values @ values)))
+    if not norms:
+        return {}
+    return {"parameter_norm_median": float(np.median(norms)), "parameter_norm_max": max(norms)}
+
+
+FIELDS = [mixing_last_loop, loop_rates, training_epochs, qd_metrics]
+# Functions of a full run returning {name: number or text}, stored for studies (summary.toml).
+KEPT = [elite_parameter_norms]
 
 
 def kept(run):
