@@ -64,8 +64,10 @@ class Algorithms:
         """Legend order: the table's, then unknown names alphabetically."""
         return (self.order.index(name) if name in self.order else len(self.order), name)
 
-    def plots_mixing_ratio(self, name):
-        return bool(self.by_name.get(name, {}).get("mixing_ratio"))
+    def plots_mixing_ratio(self, runs):
+        """Whether these runs' mixing ratio is shown: their (representation, mutator) pair is one the
+        table marks (PoMS and PoMS-PCA, also on another archive or from another file)."""
+        return any(self.by_pair.get((r.representation, r.mutator), {}).get("mixing_ratio") for r in runs)
 
     def is_sampler(self, experiment):
         """Random search draws fresh policies every loop (its mutator is its loop-0 sampler)."""

@@ -19,7 +19,7 @@ def plot(out, env, groups):
     fig = out.figure("coverage")
     # Other operators log a constant or another quantity as their mixing ratio (the mutators' READMEs).
     has_ratio = any(not math.isnan(m.get("mixing_ratio", math.nan)) for alg, runs in groups.items()
-                    if algs.plots_mixing_ratio(alg) for r in runs for m in r.metrics)
+                    if algs.plots_mixing_ratio(runs) for r in runs for m in r.metrics)
     if has_ratio:
         ax, axr = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     else:
@@ -54,7 +54,7 @@ def plot(out, env, groups):
                  "index_space": index_space, "final_median_elites": final, "epoch_caps": caps,
                  "evaluations": x.tolist(), "median": med.tolist(), "q25": q25.tolist(), "q75": q75.tolist(),
                  "loop_end_evaluations": ends}
-        if axr is not None and algs.plots_mixing_ratio(alg):
+        if axr is not None and algs.plots_mixing_ratio(runs):
             ratio = mixing_ratio(runs)
             if ratio is not None:
                 ev, mean, std = ratio

@@ -82,10 +82,10 @@ def ratio(measured, estimate):
     return f"{measured / estimate:.2f}" if estimate > 0 else "n/a"
 
 
-def mixing_text(alg, summaries):
+def mixing_text(summaries):
     """The median over runs of the share of parameter-space offspring in each run's last loop, or '-'."""
     values = [s["mixing"] for s in summaries if not math.isnan(s["mixing"])]
-    plotted = tables.algorithms().by_experiment.get(alg, {}).get("mixing_ratio")
+    plotted = tables.algorithms().plots_mixing_ratio([s["run"] for s in summaries])
     return fmt(stats.nearest(values, 50), 2) if plotted and values else "-"
 
 
@@ -191,7 +191,7 @@ def environment(r, env):
         rows.append(f"| {name} | {len(done)}/{len(infos)} | {done[0]['evaluations']} | "
                     f"{n(el, 50)} ({n(el, 25)}-{n(el, 75)}) | {pcts}{fmt(n(walls, 50))} | "
                     f"{fmt(n([s['train'] for s in done], 50))} | {fmt(n(rates, 50), 0)} | "
-                    f"{mixing_text(a, done)} | {epochs_text(infos)} |")
+                    f"{mixing_text(done)} | {epochs_text(infos)} |")
     caption = cap_caption(env_runs)
     if caption:
         lines += [caption, ""]
@@ -218,7 +218,7 @@ def environment(r, env):
             pcts = "".join(f"{percent(s['elites'], c)} | " for c in of)
             lines.append(f"| {r.name(a)} | {s['seed']} | {s['loops']} | {s['evaluations']} | {s['elites']} | "
                          f"{pcts}{fmt(s['wall'])} | {fmt(s['train'])} | {fmt(rate, 0)} | {s['workers']} | "
-                         f"{s['status']} | {mixing_text(a, [s])} | {epochs_text([s])} |")
+                         f"{s['status']} | {mixing_text([s])} | {epochs_text([s])} |")
     lines += ["", "</details>"]
     return lines
 
@@ -447,7 +447,7 @@ def diagnostics(r):
             infos = r.runs[(env, a)]
             if not infos:
                 continue
-            if algs.by_experiment.get(a, {}).get("mixing_ratio"):
+            if algs.plots_mixing_ratio([s["run"] for s in infos]):
                 ratio = stats.paper_mixing_ratio([s["run"] for s in infos])
                 if ratio is not None:
                     ev, mean, _ = ratio
