@@ -26,7 +26,7 @@ for alg in poms iso ps-uniform; do
 done
 grep -q "figures/coverage-striker.png" "$report"
 # Commands are written relative to the repository and the report's directory: no paths of this machine.
-grep -q '^- report command: `share/qdreport --environments striker .* -o REPORT_DIR --qdrun ' "$report"
+grep -q '^- report command: `share/qdreport --configs paper-text --environments striker .* -o REPORT_DIR --qdrun ' "$report"
 ! grep -qF "$(cd "$src" && pwd)" "$report" || { echo "the report holds absolute paths:"; grep -F "$(cd "$src" && pwd)" "$report"; exit 1; }
 [ -s "$out/figures/coverage-striker.png" ] && [ -s "$out/figures/map-striker-poms.png" ]
 grep -q "^\*\*Autoencoder epochs capped at 5 per loop\*\*" "$report"  # the caption of the tables it affects
