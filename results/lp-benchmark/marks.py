@@ -24,9 +24,9 @@ MARKS = (1_080_540, 2_538_540, 5_400_540)
 # CVT cells: QD score, coverage in %.
 PYRIBS = {"MAPE-Iso": ("map_elites", 416_111.64, 2_681.37, 50.72, 0.40),
           "MAPE-IsoLineDD": ("line_map_elites", 491_013.92, 1_118.74, 60.44, 0.17),
-          "MAPE-Iso-CVT": ("cvt_map_elites", 416_350.11, 3_942.42, 50.67, 0.49),
+          "MAPE-Iso CVT": ("cvt_map_elites", 416_350.11, 3_942.42, 50.67, 0.49),
           "cma-me": ("cma_me_imp", 456_678.01, 2_882.10, 55.84, 0.41)}
-ORDER = ["MAPE-Iso", "MAPE-IsoLineDD", "cma-me", "PoMS", "MAPE-Iso-CVT", "PoMS-CVT"]
+ORDER = ["MAPE-Iso", "MAPE-IsoLineDD", "cma-me", "PoMS", "MAPE-Iso CVT", "PoMS CVT"]
 
 
 def at(run, evaluations):

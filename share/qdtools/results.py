@@ -2,9 +2,10 @@
 nothing bulky (results/README.md states the rule).
 
 A study keeps, per run, what a reader needs to check a claim: config.toml, provenance.toml,
-grid.toml, status, training.csv (and pca.csv), metrics.csv as metrics.csv.gz, and the final archive
-without its parameters as archive.csv.gz (index, objective, measures_*, recn_error). Never the
-per-epoch losses, the parameters, checkpoints, datasets or snapshots."""
+grid.toml, status, training.csv (and pca.csv), metrics.csv as metrics.csv.gz, and the final
+archive without its parameters as archive.csv.gz (index, objective, measures_*, recn_error) with,
+for a CVT, centroids.csv as centroids.csv.gz. Never the per-epoch losses, the parameters,
+checkpoints, datasets or snapshots."""
 import gzip
 import json
 import math
@@ -19,7 +20,7 @@ from .report import study, summary
 from .runs import Run, csv_header, group, is_run_dir, median_run, open_text
 
 KEEP = ("config.toml", "provenance.toml", "grid.toml", "status", "training.csv", "pca.csv", "summary.toml")
-COMPRESS = ("metrics.csv",)
+COMPRESS = ("metrics.csv",)  # and centroids.csv beside a kept archive (slim_run)
 # Figures a study's files cannot give again (they need parameters, checkpoints or per-epoch logs):
 # copied as drawn. Coverage and maps are drawn again from the kept files (qdreport --regenerate).
 KEPT_FIGURES = ("traces", "latents", "losses")

@@ -80,11 +80,10 @@ def csv_header(path):
 
 @dataclass
 class Grid:
-    """grid.toml: the descriptor's archive. kind "grid": a cell index is row-major over `shape`, the
-    last dimension fastest, and `labels[d]` names the bins of dimension d (empty when the descriptor
-    names none). kind "cvt": shape = [cells], a cell is the nearest of `centroids` (cells x
-    dimensions, from the run's centroids.csv) in the descriptor's values, whose dimensions are
-    `names`, `lower` and `upper`."""
+    """grid.toml: the descriptor's grid. A cell index is row-major over `shape`, the last dimension
+    fastest. `labels[d]` names the bins of dimension d (empty when the descriptor names none).
+    kind "cvt": a centroidal Voronoi tessellation, shape = [cells], `names`, `lower` and `upper` per
+    descriptor dimension, and a cell is the index of its centroid (`centroids`, from centroids.csv)."""
     cells: int
     shape: list
     names: list
@@ -95,12 +94,17 @@ class Grid:
     centroids: object = None  # numpy array, cells x dimensions (kind "cvt")
 
     @property
+    def is_cvt(self):
+        return self.kind == "cvt"
+
+    @property
     def dimensions(self):
         return len(self.names)
 
     def unravel(self, cells):
-        """Per dimension, the bin of every cell index."""
+        """Per dimension, the bin of every cell index (a grid's, not a CVT's)."""
         import numpy as np
+        assert not self.is_cvt, "a CVT's cells are centroids, not bins"
         out, rest = [], np.asarray(cells, dtype=np.int64)
         for bins in reversed(self.shape):
             out.append(rest % bins)
@@ -115,44 +119,45 @@ class Grid:
 
 
 def read_grid(run_dir):
-    """A run directory's grid.toml (with a CVT archive's centroids); None for runs made before qdrun
-    wrote it."""
+    """A run directory's grid.toml (with a CVT's centroids); None for runs made before qdrun wrote it."""
     path = Path(run_dir) / "grid.toml"
     try:
         g = read_toml(path)
     except FileNotFoundError:
         return None
-    shape = [int(b) for b in g["shape"]]
     kind = g.get("kind", "grid")
-    names, lower, upper = list(g["names"]), [float(v) for v in g["lower"]], [float(v) for v in g["upper"]]
-    if kind == "cvt":
-        if shape != [g["cells"]] or len(lower) != len(names) or len(upper) != len(names):
-            raise ToolError(f"{path}: a CVT archive has shape = [cells] and lower, upper and names per dimension")
-        return Grid(int(g["cells"]), shape, names, lower, upper, [], kind,
-                    read_centroids(Path(run_dir) / g["centroids"], int(g["cells"]), names))
-    if kind != "grid":
-        raise ToolError(f"{path}: unknown kind = \"{kind}\" (grid or cvt)")
+    if kind not in ("grid", "cvt"):
+        raise ToolError(f"{path}: kind = \"{kind}\" is neither \"grid\" nor \"cvt\" (a newer qdrun's run?)")
+    shape = [int(b) for b in g["shape"]]
+    names = list(g["names"])
     labels = [list(x) for x in g.get("labels", [])]
-    if math.prod(shape) != g["cells"] or len(names) != len(shape) or \
-            (labels and (len(labels) != len(shape) or any(x and len(x) != n for x, n in zip(labels, shape)))):
-        raise ToolError(f"{path}: shape {shape} does not match cells = {g['cells']}, names or labels")
-    return Grid(int(g["cells"]), shape, names, lower, upper, labels)
+    dims = len(names) if kind == "cvt" else len(shape)
+    if math.prod(shape) != g["cells"] or (kind == "cvt" and len(shape) != 1) or len(names) != dims or \
+            len(g["lower"]) != dims or len(g["upper"]) != dims or (labels and (
+                kind == "cvt" or len(labels) != len(shape) or any(x and len(x) != n for x, n in zip(labels, shape)))):
+        raise ToolError(f"{path}: shape {shape} does not match cells = {g['cells']}, names, bounds or labels")
+    centroids = read_centroids(path, g, names) if kind == "cvt" else None
+    return Grid(int(g["cells"]), shape, names, [float(v) for v in g["lower"]], [float(v) for v in g["upper"]],
+                labels, kind, centroids)
 
 
-def read_centroids(path, cells, names):
-    """centroids.csv of a CVT archive (centroid,<name>...; one row per cell, in cell order) as a
-    cells x dimensions array; None when the file is missing (a study that did not keep it)."""
+def read_centroids(grid_path, g, names):
+    """A CVT's centroids (centroids.csv or .gz beside grid.toml: `centroid,<name>...`, one row per
+    cell in order) as a cells x dimensions array; None for a study's copy of a run that keeps
+    neither the archive nor the centroids (share/qdresults --archives maps)."""
     import numpy as np
-    if locate(path) is None:
-        return None
-    header = csv_header(path)
-    if header != ["centroid"] + names:
-        raise ToolError(f"{path}: header {','.join(header)} is not centroid,{','.join(names)}")
-    rows = read_csv(path)
-    values = np.array([[r[n] for n in names] for r in rows], dtype=float).reshape(len(rows), len(names))
-    if len(rows) != cells or [int(r["centroid"]) for r in rows] != list(range(cells)):
-        raise ToolError(f"{path}: {len(rows)} rows, not the centroids 0..{cells - 1} in order")
-    return values
+    path = grid_path.parent / g.get("centroids", "centroids.csv")
+    try:
+        header = csv_header(path)
+        rows = read_csv(path)
+    except FileNotFoundError as e:
+        if locate(grid_path.parent / "archive.csv") is None:
+            return None
+        raise ToolError(f"{grid_path}: a CVT grid whose centroids ({path.name}) are missing") from e
+    if header != ["centroid"] + names or [r["centroid"] for r in rows] != list(range(g["cells"])):
+        raise ToolError(f"{path}: not the {g['cells']} centroids of grid.toml's {', '.join(names)} "
+                        f"(header: {','.join(header)}; {len(rows)} rows)")
+    return np.array([[r[n] for n in names] for r in rows], dtype=float).reshape(len(rows), len(names))
 
 
 @dataclass
@@ -202,8 +207,8 @@ class Run:
         self.mutator = self.config["mutator"]["type"]
         self.grid = read_grid(self.path)
         self.algorithm = algs.name_of(self.representation, self.mutator) or self._label_from_file()
-        if self.grid and self.grid.kind == "cvt" and "cvt" not in self.algorithm.lower():
-            self.algorithm += "-CVT"  # the same operators on another archive: never one group with the grid's
+        if self.grid and self.grid.is_cvt and self.algorithm == algs.name_of(self.representation, self.mutator):
+            self.algorithm += tables.CVT_SUFFIX  # the same pair on a CVT archive is another curve than on a grid
         self.experiment = (algs.by_pair.get((self.representation, self.mutator)) or {}).get("experiment")
         epochs = self.config.get("representation", {}).get("max_epochs") if self.representation == "autoencoder" \
             else None

@@ -23,10 +23,10 @@ def load(name, share=SHARE):
         raise ToolError(f"{path}: {e}") from e
 
 
-# Colours and markers of algorithms the table does not know, in the order they are given out: none
-# of the table's colours.
-OTHER_STYLES = [("tab:olive", "h"), ("tab:cyan", "<"), ("black", ">"), ("gold", "p"), ("navy", "d"),
-                ("maroon", "8"), ("lime", "H"), ("teal", "X")]
+# An algorithm of the table run on a CVT archive is labelled with this suffix (runs.Run.algorithm).
+CVT_SUFFIX = " CVT"
+# Colours and markers of algorithms the table does not know (none of the table's).
+OTHER_STYLES = [("black", "."), ("tab:pink", "P"), ("tab:gray", "*"), ("tab:olive", "X"), ("tab:cyan", "h")]
 
 
 class Algorithms:
@@ -46,28 +46,33 @@ class Algorithms:
         a = self.by_pair.get((representation, mutator))
         return a["name"] if a else None
 
-    def style(self, name):
-        """(colour, marker) of an algorithm; black dots for one the table does not know."""
-        a = self.by_name.get(name)
-        return (a["colour"], a["marker"]) if a else ("black", ".")
-
     def styles(self, names):
-        """{name: (colour, marker)} for the algorithms of one figure: the table's, and for names it does
-        not know (a run's experiment file, say cma-me) distinct ones from OTHER_STYLES in legend
-        order, so that every curve of a figure can be told apart."""
-        out, others = {}, iter(OTHER_STYLES)
-        for name in sorted(names, key=self.rank):
-            out[name] = self.style(name) if name in self.by_name else next(others, ("black", "."))
+        """{name: (colour, marker, linestyle)} for the curves of one figure: the table's for its
+        algorithms; a table algorithm on a CVT archive (name + CVT_SUFFIX) its colour and marker,
+        dashed; other names, in legend order, a colour and marker of their own (OTHER_STYLES, then
+        repeated with dotted lines), so no two curves of a figure look alike."""
+        out, others = {}, []
+        for name in sorted(set(names), key=self.rank):
+            base = self.by_name.get(name.removesuffix(CVT_SUFFIX))
+            if name in self.by_name:
+                out[name] = (base["colour"], base["marker"], "-")
+            elif base and name.endswith(CVT_SUFFIX):
+                out[name] = (base["colour"], base["marker"], "--")
+            else:
+                others.append(name)
+        for k, name in enumerate(others):
+            colour, marker = OTHER_STYLES[k % len(OTHER_STYLES)]
+            out[name] = (colour, marker, ("-", ":", "-.")[k // len(OTHER_STYLES) % 3])
         return out
 
     def rank(self, name):
-        """Legend order: the table's, then unknown names alphabetically."""
-        return (self.order.index(name) if name in self.order else len(self.order), name)
+        """Legend order: the table's (each algorithm followed by its CVT run), then unknown names
+        alphabetically."""
+        base = name.removesuffix(CVT_SUFFIX)
+        return (self.order.index(base) if base in self.order else len(self.order), name)
 
-    def plots_mixing_ratio(self, runs):
-        """Whether these runs' mixing ratio is shown: their (representation, mutator) pair is one the
-        table marks (PoMS and PoMS-PCA, also on another archive or from another file)."""
-        return any(self.by_pair.get((r.representation, r.mutator), {}).get("mixing_ratio") for r in runs)
+    def plots_mixing_ratio(self, name):
+        return bool(self.by_name.get(name.removesuffix(CVT_SUFFIX), {}).get("mixing_ratio"))
 
     def is_sampler(self, experiment):
         """Random search draws fresh policies every loop (its mutator is its loop-0 sampler)."""

@@ -162,13 +162,14 @@ grep -q "^complete" "$t/runs/striker-iso/seed-1/status"
 grep -q "^The sweep ran in 2 invocations of qdreport, [0-9.]* h of wall time in all" "$t/REPORT.md"
 
 # The diagnostics: PoMS's loop-1 epochs as its training.csv has them, its elites' median parameter norm.
-read -r ep1 norm < <(/usr/bin/python3 - "$out/runs/striker-poms/seed-1" <<'PY'
-import csv, sys, numpy as np
-d = sys.argv[1]
-ep = [r["epochs"] for r in csv.DictReader(open(f"{d}/training.csv"))]
-rows = list(csv.reader(open(f"{d}/archive.csv")))
-first = rows[0].index("solution_0")
-norms = [np.linalg.norm(np.array(r[first:], dtype=float)) for r in rows[1:]]
+read -r ep1 norm < <(/usr/bin/python3 - "$(dirname "$0")" "$out/runs/striker-poms/seed-1" <<'PY'
+import sys
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+from figure_check import runs
+d = sys.argv[2]
+ep = [r["epochs"] for r in runs.read_csv(f"{d}/training.csv", text=True)]
+norms = [np.linalg.norm([v for k, v in r.items() if k.startswith("solution_")]) for r in runs.read_csv(f"{d}/archive.csv")]
 print(ep[1], f"{np.median(norms):.2f}")
 PY
 )

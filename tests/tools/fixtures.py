@@ -11,12 +11,14 @@ sys.dont_write_bytecode = True  # nothing written into the source tree
 
 def write_run(root, name="my-env-decaying", seed=1, env="point-mass", rep="none", mutator="decaying-iso",
               descriptor="point-xy", metrics=None, grid=None, archive=None, experiment_file=None, extra_env="",
-              batch=10, status="complete", qd=None, centroids=None):
-    """A run directory <root>/<name>/seed-<seed>/ with config.toml, provenance.toml, metrics.csv and,
-    when given, grid.toml and archive.csv. `metrics`: rows (loop, evaluations, elites[, mixing_ratio]);
-    `grid`: (shape, names, lower, upper[, labels]); `archive`: rows (index, objective, measures...);
-    `qd`: per metrics row (qd_score, max_fitness, mean_fitness), empty without; `centroids`: a CVT
-    archive's centroids (rows of values) with `grid` = (None, names, lower, upper)."""
+              batch=10, status="complete", centroids=None, qd=None):
+    """A run directory <root>/<name>/seed-<seed>/ with config.toml, provenance.toml, metrics.csv (the
+    columns qdrun writes; the QD metrics empty unless `qd` is given) and, when given, grid.toml and
+    archive.csv. `metrics`: rows (loop, evaluations, elites[, mixing_ratio]); `grid`: (shape, names,
+    lower, upper[, labels]); `centroids`: (names, rows of coordinates[, lower, upper]), a CVT's
+    grid.toml (bounds: the given, else the centroids' own) and centroids.csv instead; `archive`:
+    rows (index, objective, measures...); `qd`: per metrics row (qd_score, max_fitness,
+    mean_fitness), a task with fitness."""
     d = Path(root) / name / f"seed-{seed}"
     d.mkdir(parents=True)
     (d / "config.toml").write_text(
@@ -29,15 +31,7 @@ def write_run(root, name="my-env-decaying", seed=1, env="point-mass", rep="none"
     (d / "provenance.toml").write_text(prov)
     rows = metrics or [(0, 20, 5), (1, 30, 8), (1, 40, 9), (2, 50, 12)]
     cells = 100
-    if centroids is not None:
-        names, lower, upper = grid[1:4]
-        cells = len(centroids)
-        (d / "grid.toml").write_text(f'kind = "cvt"\ncells = {cells}\nshape = [{cells}]\nnames = {list(names)}\n'
-                                     f'lower = {list(lower)}\nupper = {list(upper)}\ncentroids = "centroids.csv"\n'
-                                     .replace("'", '"'))
-        (d / "centroids.csv").write_text("centroid," + ",".join(names) + "\n" + "".join(
-            f"{k}," + ",".join(map(repr, map(float, c))) + "\n" for k, c in enumerate(centroids)))
-    elif grid:
+    if grid:
         shape, names, lower, upper = grid[:4]
         cells = 1
         for n in shape:
@@ -46,6 +40,16 @@ def write_run(root, name="my-env-decaying", seed=1, env="point-mass", rep="none"
         if len(grid) > 4:
             text += f"labels = {grid[4]}\n"
         (d / "grid.toml").write_text(text.replace("'", '"'))
+    if centroids:
+        names, points = centroids[:2]
+        cells = len(points)
+        lower = list(centroids[2]) if len(centroids) > 2 else [min(p[k] for p in points) for k in range(len(names))]
+        upper = list(centroids[3]) if len(centroids) > 3 else [max(p[k] for p in points) for k in range(len(names))]
+        (d / "grid.toml").write_text((f'kind = "cvt"\ncells = {cells}\nshape = [{cells}]\nnames = {list(names)}\n'
+                                      f'lower = {lower}\nupper = {upper}\ncentroids = "centroids.csv"\n'
+                                      'centroids_crc32c = "00000000"\n').replace("'", '"'))
+        (d / "centroids.csv").write_text(",".join(["centroid"] + list(names)) + "\n" + "".join(
+            ",".join(map(str, [c] + list(p))) + "\n" for c, p in enumerate(points)))
     lines = ["loop,iteration,evaluations,elites,coverage,qd_score,max_fitness,mean_fitness,mixing_ratio,added,replaced,"
              "invalid,wall_seconds,train_seconds"]
     iteration = {}

@@ -14,9 +14,8 @@ import matplotlib
 import numpy as np
 from PIL import Image
 
-from qdtools import plot_cli
-from qdtools.figures import voronoi
-from qdtools.runs import Run
+from qdtools import plot_cli, runs
+from qdtools.figures import latents, voronoi
 
 GRID = ([4, 3], ["x", "y"], [0.0, 0.0], [2.0, 1.5])  # cells of 0.5 x 0.5: square
 
@@ -66,6 +65,53 @@ class Figures(unittest.TestCase):
         self.assertFalse((figures / "map-point-mass-decaying-iso-fitness.png").exists())
         self.assertIn("no fitness map", said)
         self.assertIn("every elite has the same fitness", said)
+
+    def test_a_cvt_archive_gets_coverage_and_voronoi_maps(self):
+        root = fixtures.tmpdir(self)
+        run = fixtures.write_run(root / "runs", centroids=(["x", "y"], [(0.0, 0.0), (1.0, 0.5), (0.5, 1.0)]),
+                                 archive=[(0, 1.0, 0.1, 0.1), (2, 2.0, 0.6, 0.9)], rep="autoencoder", mutator="poms",
+                                 metrics=[(0, 10, 1), (1, 20, 2)])
+        with contextlib.redirect_stdout(io.StringIO()) as said:
+            plot_cli.plot([root / "runs"], root / "figures", ["coverage", "maps"], formats=("png",), dump=True)
+        self.assertEqual(sorted(p.name for p in (root / "figures").glob("*.png")),
+                         ["coverage-point-mass.png", "map-point-mass-poms-cvt-fitness.png", "map-point-mass-poms-cvt.png"])
+        self.assertEqual(dump(root / "figures", "map-point-mass-poms-cvt")["kind"], "cvt")
+        self.assertNotIn("no map", said.getvalue())
+        cov = dump(root / "figures", "coverage-point-mass")["figure"]
+        self.assertTrue(any(t == "PoMS CVT (1 seed): 2 cells, 66.67 %" for t in cov["legends"]), cov)
+        # Latent codes are coloured by the coordinates of their cell's centroid.
+        names, values = zip(*latents.colourings(runs.read_grid(run), np.array([2, 0, 2])))
+        self.assertEqual(names, ("x of the cell's centroid", "y of the cell's centroid"))
+        self.assertEqual([v.tolist() for v in values], [[0.5, 0.0, 0.5], [1.0, 0.0, 1.0]])
+
+    def test_trajectories_of_an_unknown_task_from_its_trace_columns(self):
+        # qdrun --replay's output is written beforehand: qdplot replays only when it is older than
+        # the archive, so /bin/true stands in for qdrun.
+        for rows_per_path, header, said_expected in (
+                (3, "main_0,main_1", "one path per elite (2), coloured by its final main_0"),
+                (1, "main_0,main_1", "one point per elite whose trace is one row (2), coloured by its main_0"),
+                (2, "", "environment 'point-mass' records no rows in its trace's main table (Trace::main)")):
+            root = fixtures.tmpdir(self)
+            fixtures.write_run(root / "runs", grid=GRID, archive=[(7, 1.0, 1.2, 0.7), (9, 3.0, 1.8, 0.1)],
+                               experiment_file="/x/decaying-iso.toml")
+            data = root / "figures" / "data" / "traces-point-mass-decaying-iso-seed-1.csv"
+            data.parent.mkdir(parents=True)
+            data.write_text("cell,landed,status,row" + ("," + header if header else "") + "\n" + "".join(
+                f"{cell},{cell},ok,{k}" + (f",{0.1 * k + cell},{0.2 * k}" if header else "") + "\n"
+                for cell in (7, 9) for k in range(rows_per_path)))
+            with contextlib.redirect_stdout(io.StringIO()) as said:
+                plot_cli.plot([root / "runs"], root / "figures", ["traces"], formats=("png",), dump=True,
+                              qdrun="/bin/true")
+            if not header:
+                self.assertIn(said_expected, said.getvalue())
+                self.assertFalse((root / "figures" / "traces-point-mass-decaying-iso.png").exists())
+                continue
+            fig = dump(root / "figures", "traces-point-mass-decaying-iso")["figure"]
+            self.assertEqual(fig["legends"], [said_expected])
+            self.assertEqual(fig["colorbars"], ["final main_0" if rows_per_path > 1 else "main_0"])
+            self.assertEqual(fig["axes"][0]["xlabel"], "main_0 (column 1 of the trace's main table)")
+            self.assertEqual(fig["axes"][0]["ylabel"], "main_1 (column 2 of the trace's main table)")
+            self.assertGreaterEqual(min(fig["axes"][0]["xticks"], fig["axes"][0]["yticks"]), 2)
 
     def test_loss_curves_label_several_ticks_whatever_their_range(self):
         for low, high in ((100.0, 120.0), (80.0, 600.0), (1e-3, 50.0)):
@@ -138,8 +184,8 @@ class VoronoiMap(unittest.TestCase):
 
     def test_every_cell_has_the_colour_of_its_elite(self):
         root = fixtures.tmpdir(self)
-        fixtures.write_run(root / "runs", mutator="iso", archive=CVT_ARCHIVE, centroids=CENTROIDS,
-                           grid=(None, ["x", "y"], [0.0, 0.0], [4.0, 2.0]))
+        fixtures.write_run(root / "runs", mutator="iso", archive=CVT_ARCHIVE,
+                           centroids=(["x", "y"], CENTROIDS, [0.0, 0.0], [4.0, 2.0]))
         with contextlib.redirect_stdout(io.StringIO()):
             plot_cli.plot([root / "runs"], root / "figures", ["maps"], formats=("png",), dump=True)
         centroids = np.array(CENTROIDS)
@@ -167,14 +213,6 @@ class VoronoiMap(unittest.TestCase):
                     np.testing.assert_allclose(got, want, atol=2 / 255, err_msg=f"{stem} pixel {px},{py} cell {cell}")
                     checked += 1
             self.assertGreater(checked, 2000)
-
-    def test_cvt_runs_are_labelled_apart_from_grid_runs(self):
-        root = fixtures.tmpdir(self)
-        cvt = fixtures.write_run(root, name="a", mutator="iso", centroids=CENTROIDS, grid=(None, ["x", "y"], [0, 0], [4, 2]))
-        grid = fixtures.write_run(root, name="b", mutator="iso", grid=GRID)
-        other = fixtures.write_run(root, name="c", mutator="cma-me", experiment_file="/e/lp-sphere/cma-me.toml")
-        self.assertEqual([Run(p).algorithm for p in (cvt, grid, other)], ["MAPE-Iso-CVT", "MAPE-Iso", "cma-me"])
-        self.assertEqual(Run(cvt).grid.centroids.tolist(), [list(c) for c in CENTROIDS])
 
 
 if __name__ == "__main__":

@@ -116,6 +116,15 @@ class Slim(unittest.TestCase):
         kept = sorted(p.parent.name for p in (report.parent / "study" / "runs").rglob("archive.csv.gz"))
         self.assertEqual(kept, ["seed-3"])
 
+    def test_a_cvt_keeps_its_centroids_compressed(self):
+        root = fixtures.tmpdir(self)
+        run = fixtures.write_run(root / "full", centroids=(["x", "y"], [(0.0, 0.0), (1.0, 0.5)]),
+                                 archive=[(1, 0.5, 0.9, 0.4)])
+        results.slim_run(run, root / "slim")
+        self.assertIn("centroids.csv.gz", [p.name for p in (root / "slim").iterdir()])
+        self.assertEqual(runs.read_grid(root / "slim").centroids.tolist(), [[0.0, 0.0], [1.0, 0.5]])
+        self.assertEqual(runs.Run(root / "slim").algorithm, "my-env-decaying")  # its experiment
+
     def test_quantities_of_the_full_run_are_kept_in_summary_toml(self):
         root = fixtures.tmpdir(self)
         run = fixtures.write_run(root / "full", archive=[(1, 0.5, 0.1, 0.2), (4, 0.7, 0.3, 0.4)])

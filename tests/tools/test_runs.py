@@ -49,6 +49,30 @@ class Reading(unittest.TestCase):
         self.assertEqual(g.bin_label(1, 1), "1")
         self.assertEqual([b.tolist() for b in g.unravel([0, 1, 5])], [[0, 0, 2], [0, 1, 1]])
 
+    def test_cvt_grid_and_its_centroids(self):
+        points = [(0.0, 0.0), (1.0, 0.5), (0.25, 1.0)]
+        d = fixtures.write_run(self.root, centroids=(["x", "y"], points))
+        g = runs.read_grid(d)
+        self.assertTrue(g.is_cvt)
+        self.assertEqual((g.cells, g.shape, g.names, g.lower, g.upper), (3, [3], ["x", "y"], [0, 0], [1, 1]))
+        self.assertEqual(g.centroids.tolist(), [list(p) for p in points])
+        self.assertFalse(runs.read_grid(fixtures.write_run(self.root, seed=2, grid=([2], ["x"], [0], [1]))).is_cvt)
+        with gzip.open(d / "centroids.csv.gz", "wt") as z:  # as a study keeps them
+            z.write((d / "centroids.csv").read_text())
+        (d / "centroids.csv").unlink()
+        self.assertEqual(runs.read_grid(d).centroids.tolist(), [list(p) for p in points])
+        (d / "centroids.csv.gz").unlink()
+        self.assertIsNone(runs.read_grid(d).centroids)  # no archive either: a study kept neither (--archives maps)
+        (d / "archive.csv").write_text("index,objective,measures_0,measures_1\n0,1.0,0.0,0.0\n")
+        with self.assertRaisesRegex(ToolError, r"grid.toml: a CVT grid whose centroids \(centroids.csv\) are missing"):
+            runs.read_grid(d)
+        (d / "centroids.csv").write_text("centroid,x,z\n0,0,0\n1,1,1\n2,0,1\n")
+        with self.assertRaisesRegex(ToolError, "centroids.csv: not the 3 centroids of grid.toml's x, y"):
+            runs.read_grid(d)
+        (d / "centroids.csv").write_text("centroid,x,y\n0,0,0\n1,1,1\n")
+        with self.assertRaisesRegex(ToolError, "2 rows"):
+            runs.read_grid(d)
+
     def test_grid_that_contradicts_itself(self):
         d = fixtures.write_run(self.root, grid=([3, 2], ["side", "h"], [0, 0], [3, 1], [["a", "b"], []]))
         with self.assertRaisesRegex(ToolError, "does not match"):
@@ -66,6 +90,15 @@ class Runs(unittest.TestCase):
         self.assertEqual(mine.algorithm, "decaying-iso")
         unnamed = runs.Run(fixtures.write_run(self.root, name="c"))
         self.assertEqual(unnamed.algorithm, "c")  # the experiment's name
+
+    def test_a_cvt_archive_is_another_algorithm_than_the_grid(self):
+        cvt = (["x", "y"], [(0.0, 0.0), (1.0, 1.0)])
+        grid = runs.Run(fixtures.write_run(self.root, name="a", mutator="iso", grid=([2, 2], ["x", "y"], [0, 0], [1, 1])))
+        on_cvt = runs.Run(fixtures.write_run(self.root, name="b", mutator="iso", centroids=cvt))
+        self.assertEqual((grid.algorithm, on_cvt.algorithm), ("MAPE-Iso", "MAPE-Iso CVT"))
+        self.assertEqual(sorted(runs.group([grid, on_cvt])["point-mass"]), ["MAPE-Iso", "MAPE-Iso CVT"])
+        mine = runs.Run(fixtures.write_run(self.root, name="c", centroids=cvt, experiment_file="/x/my-cvt.toml"))
+        self.assertEqual(mine.algorithm, "my-cvt")  # an unknown pair: its file's name says it all
 
     def test_find_and_median(self):
         for seed, elites in ((1, 9), (2, 3), (3, 5), (4, 7)):

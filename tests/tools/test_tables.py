@@ -26,15 +26,9 @@ class Variants(unittest.TestCase):
         self.assertEqual(tables.experiment_variants(fixtures.SOURCE / "experiments"),
                          ["bipedal-kicker", "bipedal-kicker-mix-scale", "bipedal-walker", "bipedal-walker-mix-scale",
                           "striker", "striker-mix-scale"])
-
-    def test_styles_tell_every_algorithm_of_a_figure_apart(self):
-        algs = tables.algorithms()
-        styles = algs.styles(["cma-me", "PoMS", "MAPE-Iso-CVT", "MAPE-Iso"])
-        self.assertEqual(styles["PoMS"], algs.style("PoMS"))
-        self.assertEqual(len(set(styles.values())), 4)
-        self.assertEqual(styles["cma-me"], tables.OTHER_STYLES[1])  # unknown names in legend (alphabetical) order
-        self.assertEqual(styles["MAPE-Iso-CVT"], tables.OTHER_STYLES[0])
-        self.assertFalse({c for c, _ in tables.OTHER_STYLES} & {a["colour"] for a in algs.entries})
+        # The reference set is a directory of variants too (qdreport --experiments experiments/reference).
+        self.assertEqual(tables.experiment_variants(fixtures.SOURCE / "experiments" / "reference"),
+                         ["bipedal-kicker", "bipedal-walker", "striker"])
 
     def test_algorithms(self):
         algs = tables.algorithms()
@@ -46,6 +40,17 @@ class Variants(unittest.TestCase):
         self.assertEqual(algs.index_space({"descriptor": {"type": "walker-gait", "contact_bins": "even"}}),
                          (None, None))
         self.assertEqual(algs.rank("decaying-iso"), (len(algs.order), "decaying-iso"))
+
+    def test_no_two_curves_of_a_figure_look_alike(self):
+        algs = tables.algorithms()
+        names = ["PoMS", "PoMS CVT", "MAPE-Iso CVT", "cma-me", "my-op"] + [f"op-{k}" for k in range(5)]
+        styles = algs.styles(names)
+        self.assertEqual(len(set(styles.values())), len(names), styles)
+        poms = tuple(algs.by_name["PoMS"][k] for k in ("colour", "marker"))
+        self.assertEqual((styles["PoMS"], styles["PoMS CVT"]), (poms + ("-",), poms + ("--",)))
+        self.assertEqual(styles["cma-me"], ("black", ".", "-"))  # the first unknown, in legend order
+        self.assertTrue(algs.plots_mixing_ratio("PoMS CVT") and not algs.plots_mixing_ratio("MAPE-Iso CVT"))
+        self.assertEqual(sorted(names, key=algs.rank)[:3], ["PoMS", "PoMS CVT", "MAPE-Iso CVT"])
 
 
 def grid(shape, names=None):

@@ -19,7 +19,7 @@ def plot(out, env, groups):
     fig = out.figure("coverage")
     # Other operators log a constant or another quantity as their mixing ratio (the mutators' READMEs).
     has_ratio = any(not math.isnan(m.get("mixing_ratio", math.nan)) for alg, runs in groups.items()
-                    if algs.plots_mixing_ratio(runs) for r in runs for m in r.metrics)
+                    if algs.plots_mixing_ratio(alg) for r in runs for m in r.metrics)
     if has_ratio:
         ax, axr = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     else:
@@ -32,7 +32,7 @@ def plot(out, env, groups):
         runs = sorted(groups[alg], key=lambda r: r.seed)
         everyone += runs
         cells, index_space, index_label = runs[0].cells, runs[0].index_space, runs[0].index_space_label
-        colour, marker = styles[alg]
+        colour, marker, linestyle = styles[alg]
         final = int(stats.nearest([r.final_elites() for r in runs], 50))
         label = f"{alg} ({len(runs)} seed{'s' if len(runs) > 1 else ''}): {final} cells, {100 * final / cells:.2f} %"
         if index_space:
@@ -47,18 +47,19 @@ def plot(out, env, groups):
         marks = [int(np.searchsorted(x, e)) for e in ends if e <= x[-1]]
         if len(marks) > MAX_MARKERS:
             marks = marks[::math.ceil(len(marks) / MAX_MARKERS)]
-        (line,) = ax.plot(x, med, color=colour, marker=marker, markevery=marks, markersize=4, linewidth=1.3)
+        (line,) = ax.plot(x, med, color=colour, marker=marker, markevery=marks, markersize=4, linewidth=1.3,
+                          linestyle=linestyle)
         handles.append(line)
         labels.append(label)
         entry = {"seeds": [r.seed for r in runs], "runs": [str(r.path) for r in runs], "cells": cells,
                  "index_space": index_space, "final_median_elites": final, "epoch_caps": caps,
                  "evaluations": x.tolist(), "median": med.tolist(), "q25": q25.tolist(), "q75": q75.tolist(),
                  "loop_end_evaluations": ends}
-        if axr is not None and algs.plots_mixing_ratio(runs):
+        if axr is not None and algs.plots_mixing_ratio(alg):
             ratio = mixing_ratio(runs)
             if ratio is not None:
                 ev, mean, std = ratio
-                (rline,) = axr.plot(ev, mean, color=colour, linewidth=1.2, linestyle="-")
+                (rline,) = axr.plot(ev, mean, color=colour, linewidth=1.2, linestyle=linestyle)
                 axr.fill_between(ev, mean - std, mean + std, color=colour, alpha=0.2, linewidth=0)
                 ratio_names.append(alg)
                 handles.append(rline)

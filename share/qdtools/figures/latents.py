@@ -10,9 +10,13 @@ from .common import run_title, slug
 
 def colourings(grid, cells):
     """(name, values) pairs to colour the points by: the bins of the grid's first dimension and of
-    its largest other one (or the cell index without a grid)."""
+    its largest other one (a CVT's: the first two coordinates of the cell's centroid; the cell index
+    without a grid)."""
     if grid is None:
         return [("cell", cells)]
+    if grid.is_cvt:
+        return [(f"{grid.names[d]} of the cell's centroid", grid.centroids[cells, d])
+                for d in range(min(2, len(grid.names)))]
     bins = grid.unravel(cells)
     if len(grid.shape) == 1:
         return [(f"{grid.names[0]} bin", bins[0])]

@@ -75,7 +75,7 @@ def plot(out, run, colors=("occupancy", "fitness")):
     if cells.size and (cells.min() < 0 or cells.max() >= grid.cells):
         raise ToolError(f"{run.path / 'archive.csv'}: a cell index outside the {grid.cells} cells of grid.toml")
     painter = draw
-    if grid.kind == "cvt":
+    if grid.is_cvt:
         why = voronoi.drawable(grid)
         if why:
             print(f"qdplot: no map for {run.path}: {why}")

@@ -41,7 +41,7 @@ def plot(out, env, groups):
     for alg in sorted(fitted, key=algs.rank):
         runs = sorted((r for r in fitted[alg] if r.has_fitness()), key=lambda r: r.seed)
         everyone += runs
-        colour, marker = styles[alg]
+        colour, marker, linestyle = styles[alg]
         ends = stats.loop_ends(max(runs, key=lambda r: len(r.metrics)))
         entry = {"seeds": [r.seed for r in runs], "runs": [str(r.path) for r in runs], "loop_end_evaluations": ends}
         final = {}
@@ -52,7 +52,8 @@ def plot(out, env, groups):
             if len(marks) > MAX_MARKERS:
                 marks = marks[::math.ceil(len(marks) / MAX_MARKERS)]
             ax.fill_between(x, q25, q75, color=colour, alpha=0.2, linewidth=0)
-            (line,) = ax.plot(x, med, color=colour, marker=marker, markevery=marks, markersize=4, linewidth=1.3)
+            (line,) = ax.plot(x, med, color=colour, marker=marker, markevery=marks, markersize=4, linewidth=1.3,
+                              linestyle=linestyle)
             final[key] = stats.nearest([r.last(key) for r in runs], 50)
             entry[key] = {"evaluations": x.tolist(), "median": med.tolist(), "q25": q25.tolist(), "q75": q75.tolist(),
                           "final_median": final[key]}
@@ -67,10 +68,10 @@ def plot(out, env, groups):
         ax.set_ylabel(name, fontsize=9)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel(f"QD score\n(sum of fitness - bound)", fontsize=9)
-    axes[0].set_title(with_cap(f"{env}: QD metrics of the archive, median over seeds, a marker per loop; final "
-                               f"medians in the legend\nQD score's zero: {data['bound']}", everyone), fontsize=10)
+    axes[0].set_title(with_cap(f"{env}: QD metrics, median over seeds, a marker per loop; final medians in the "
+                               f"legend\nQD score's zero: {data['bound']}", everyone), fontsize=10)
     axes[-1].set_xlabel("evaluations")
     axes[-1].ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
     legend_below(fig, handles, labels, ncol=1)
-    fig.subplots_adjust(left=0.12, right=0.97, top=0.92, bottom=0.07 + 0.022 * len(labels), hspace=0.1)
+    fig.subplots_adjust(left=0.12, right=0.97, top=0.9, bottom=0.07 + 0.022 * len(labels), hspace=0.1)
     out.save(fig, stem("qd", env), "qd", data, everyone, environment=env)

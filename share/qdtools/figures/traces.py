@@ -6,6 +6,8 @@ table; any other environment's columns are shown as main_0 and main_1."""
 from pathlib import Path
 
 import matplotlib
+import matplotlib.cm
+import matplotlib.colors
 import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.lines import Line2D
@@ -48,13 +50,26 @@ def plot(out, run, qdrun):
         finals.append(xy[-1][0] if len(main) >= 2 else xy[-1][1])
     fig = out.figure("traces")
     ax = fig.subplots(1, 1)
-    lc = LineCollection(segments, cmap="viridis", linewidths=0.4, alpha=0.5)
-    lc.set_array(np.array(finals))
+    # A trace of one row (a task whose outcome is a point, such as the linear-projection benchmark)
+    # is drawn as a dot, a longer one as a line; one colour scale for both.
+    norm = matplotlib.colors.Normalize(min(finals), max(finals))
+    lines = [k for k, xy in enumerate(segments) if len(xy) > 1]
+    dots = [k for k, xy in enumerate(segments) if len(xy) == 1]
+    lc = LineCollection([segments[k] for k in lines], cmap="viridis", norm=norm, linewidths=0.4, alpha=0.5)
+    lc.set_array(np.array([finals[k] for k in lines]))
     ax.add_collection(lc)
+    colour = matplotlib.colormaps["viridis"](0.5)
+    handles, labels = [], []
+    if lines:
+        handles.append(Line2D([], [], color=colour, linewidth=1))
+        labels.append(f"one {body + ' ' if body else ''}path per elite ({len(lines)}), coloured by its final {names[0]}")
+    if dots:
+        xy = np.array([segments[k][0] for k in dots])
+        ax.scatter(xy[:, 0], xy[:, 1], c=[finals[k] for k in dots], cmap="viridis", norm=norm, s=3, linewidths=0)
+        handles.append(Line2D([], [], color=colour, marker=".", linestyle=""))
+        labels.append(f"one point per elite whose trace is one row ({len(dots)}), coloured by its {names[0]}")
     ax.autoscale()
-    handles = [Line2D([], [], color=matplotlib.colormaps["viridis"](0.5), linewidth=1)]
-    what = f"{body} path" if body else "path"
-    labels = [f"one {what} per elite ({len(paths)}), coloured by its final {names[0]}"]
+    what = (f"{body} " if body else "") + ("path" if lines else "point")
     if "outline" in style:
         xs, ys = zip(*style["outline"])
         (edge,) = ax.plot(xs, ys, color="black", linewidth=1)
@@ -79,11 +94,12 @@ def plot(out, run, qdrun):
     matches = sum(1 for rs in paths.values() if rs[0]["landed"] == rs[0]["cell"])
     ax.set_title(run_title(run, f"{what}s of {len(paths)} elites" + ("" if style else " (the trace's main columns)")),
                  fontsize=10)
-    bar = fig.colorbar(lc, ax=ax, shrink=0.8)
-    bar.set_label(f"final {body} {names[0]}".replace("  ", " "))
+    bar = fig.colorbar(matplotlib.cm.ScalarMappable(norm=norm, cmap="viridis"), ax=ax, shrink=0.8)
+    bar.set_label(f"{'final ' if lines else ''}{body} {names[0]}".replace("  ", " ").strip())
     legend_below(fig, handles, labels, ncol=1, fontsize=8)
     fig.subplots_adjust(left=0.12, right=0.95, top=0.91, bottom=0.16)
     out.save(fig, f"traces-{slug(run.env)}-{slug(run.algorithm)}", "traces",
-             {"run": str(run.path), "elites": len(paths), "rows": len(rows), "replayed_as_stored": matches,
+             {"run": str(run.path), "elites": len(paths), "rows": len(rows), "points": len(dots),
+              "replayed_as_stored": matches,
               "columns": main, "source": str(Path(csv)), "epoch_cap": run.epoch_cap}, [run],
              environment=run.env, algorithm=run.algorithm)

@@ -85,7 +85,7 @@ def ratio(measured, estimate):
 def mixing_text(summaries):
     """The median over runs of the share of parameter-space offspring in each run's last loop, or '-'."""
     values = [s["mixing"] for s in summaries if not math.isnan(s["mixing"])]
-    plotted = tables.algorithms().plots_mixing_ratio([s["run"] for s in summaries])
+    plotted = any(tables.algorithms().plots_mixing_ratio(s["algorithm"]) for s in summaries)
     return fmt(stats.nearest(values, 50), 2) if plotted and values else "-"
 
 
@@ -447,7 +447,7 @@ def diagnostics(r):
             infos = r.runs[(env, a)]
             if not infos:
                 continue
-            if algs.plots_mixing_ratio([s["run"] for s in infos]):
+            if any(algs.plots_mixing_ratio(s["algorithm"]) for s in infos):
                 ratio = stats.paper_mixing_ratio([s["run"] for s in infos])
                 if ratio is not None:
                     ev, mean, _ = ratio
