@@ -369,7 +369,7 @@ def lengthening(r):
     return lines
 
 
-PAPER_AT = (100000, 200000, 300000, 500000, 1000000, 2000000)
+PAPER_AT = (20000, 50000, 100000, 200000, 300000, 500000, 1000000, 2000000)
 
 
 def coverage_at(summary, evaluations, of):
