@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
-# Reliability campaigns (not part of the test suite; about 4 minutes on 2 cores): what hostile
+# Reliability campaigns (not part of the test suite; about 4-5 minutes on 2 busy cores): what hostile
 # conditions, kills and corruption do to runs. Every attack runs without a terminal or a prompt.
 #   scripts/reliability.sh [QDRUN] [KILLS=20] [FLIPS_PER_FILE=40]
 #   QD_RELIABILITY_ONLY=REGEX scripts/reliability.sh ...   only the verdicts whose name matches, with
 #                                                          their logs; no campaigns
 # QDRUN is a qdrun of a build with tests (default build/bin/qdrun): the hostile plugins of
 # tests/plugins (BUILD/tests/plugins) and the unit tests (BUILD/bin/qd_unit_tests) come with it.
-# 1. Hostile conditions: the 20 cases of issue 32 (case N) and 30 further ones (extra N), each ending
+# 1. Hostile conditions: the 20 cases of issue 32 (case N) and 41 further ones (extra N), each ending
 #    with the behaviour docs/user-guide.md documents. One verdict line each.
 # 2. Random kills: a run is killed with SIGKILL at a random moment, resumed, and compared with an
 #    uninterrupted run (archive byte for byte, logs without their time columns).
@@ -82,12 +82,13 @@ wait_for_line() {
 is_complete() { grep -qx complete "$1/status" || { echo "status of $1: $(cat "$1/status" 2>&1)"; return 1; }; }
 long=(--set experiment.loops=6 --set experiment.iterations=1500)  # about 1 s a loop
 # The uninterrupted runs results are compared with, each made once, when a case first needs it:
-# $(reference ref), $(reference ref6), $(reference reflong).
+# $(reference ref), $(reference ref6), $(reference reflong), $(reference ref0) (a long loop 0).
 reference() {
   case $1 in
   ref) set -- ref ;;
   ref6) set -- ref6 --set experiment.loops=6 ;;
   reflong) set -- reflong "${long[@]}" ;;
+  ref0) set -- ref0 "${loop0[@]}" ;;
   esac
   [ -e "$work/$1.done" ] || { full_run "$@" > /dev/null && touch "$work/$1.done"; } || return 1
   run_dir "$work/$1"
@@ -470,15 +471,19 @@ extra_21() {  # empty option values
   refused "--describe needs a value" "$Q" --describe ""
   refused "--resume needs a value" "$Q" --resume ""
 }
+sweep_stopped_by() {  # SIGNAL CODE NUMBER: a sweep of two runs stopped by SIGNAL; the runs stop as qdrun alone does
+  local sig=$1 code=$2 number=$3 out=$work/x-sweep-$1
+  "$Q" "$exp" "$root/experiments/smoke/uniform.toml" -o "$out" --workers 1 --jobs 2 "${long[@]}" > "$out.out" 2>&1 & pid=$!
+  for _ in $(seq 1 3000); do [ "$(ls "$out"/*/*/checkpoint.bin 2> /dev/null | wc -l)" -ge 2 ] && break; sleep 0.01; done
+  kill -s "$sig" $pid; wait $pid && got=0 || got=$?
+  [ $got -eq "$code" ] || { echo "exit $got: $(cat "$out.out")"; return 1; }
+  grep -q "^sweep: stopped by signal $number" "$out.out" || { cat "$out.out"; return 1; }
+  for s in "$out"/*/*/status; do grep -q "^stopped by SIG$sig at loop" "$s" || { echo "$s: $(cat "$s")"; return 1; }; done
+  "$Q" "$exp" "$root/experiments/smoke/uniform.toml" -o "$out" --workers 1 --jobs 2 "${long[@]}" > "$out.out"
+  same_results "$(reference reflong)" "$(ls -d "$out"/smoke-iso/seed-*)"
+}
 extra_22() {  # a sweep stopped by SIGTERM: its runs stop as qdrun does alone, the sweep says so
-  "$Q" "$exp" "$root/experiments/smoke/uniform.toml" -o "$work/x22" --workers 1 --jobs 2 "${long[@]}" > "$work/x22.out" & pid=$!
-  for _ in $(seq 1 3000); do [ "$(ls "$work"/x22/*/*/checkpoint.bin 2> /dev/null | wc -l)" -ge 2 ] && break; sleep 0.01; done
-  kill -TERM $pid; wait $pid && got=0 || got=$?
-  [ $got -eq 143 ] || { echo "exit $got: $(cat "$work/x22.out")"; return 1; }
-  grep -q "^sweep: stopped by signal 15" "$work/x22.out" || { cat "$work/x22.out"; return 1; }
-  for s in "$work"/x22/*/*/status; do grep -q "^stopped by SIGTERM" "$s" || { echo "$s: $(cat "$s")"; return 1; }; done
-  "$Q" "$exp" "$root/experiments/smoke/uniform.toml" -o "$work/x22" --workers 1 --jobs 2 "${long[@]}" > "$work/x22.out"
-  same_results "$(reference reflong)" "$(ls -d "$work"/x22/smoke-iso/seed-*)"
+  sweep_stopped_by TERM 143 15
 }
 extra_23() {  # stdout of a sweep's plan is a full disk: exit 4, not success
   out=$( ( "$Q" "$exp" --seeds 1,2 -o "$work/x23" --dry-run > /dev/full ) 2>&1) && got=0 || got=$?
@@ -530,7 +535,134 @@ extra_30() {  # the reader of a sweep's lines goes away: the runs go on, the los
     || { echo "exit $got: $(cat "$work/x30.err")"; return 1; }
   for d in "$work"/x30/smoke-iso/seed-*; do is_complete "$d"; done
 }
-for n in $(seq -w 1 30); do
+extra_31() {  # a CVT run's grid.toml and centroids.csv: FIFOs, device links, paths out refused; cp -al copies private
+  cvt=$root/experiments/smoke/poms-cvt.toml
+  "$Q" "$cvt" -o "$work/x31" -q --workers 1 --stop-after-loop 1 > /dev/null
+  d=$(run_dir "$work/x31")
+  cp -a "$d" "$work/x31.orig"
+  for f in grid.toml centroids.csv; do
+    mv "$d/$f" "$work/x31.file"; mkfifo "$d/$f"
+    refused "$f is a FIFO, not a regular file" "$Q" --resume "$d" -q
+    refused "$f is a FIFO, not a regular file" "$Q" --replay "$d" --cell 0
+    rm "$d/$f"; ln -s /dev/zero "$d/$f"
+    refused "$f is a symbolic link, not a regular file" "$Q" --resume "$d" -q
+    rm "$d/$f"; mv "$work/x31.file" "$d/$f"
+  done
+  sed -i 's|^centroids = .*|centroids = "/dev/zero"|' "$d/grid.toml"
+  refused "names the centroids file '/dev/zero', which is no file of the run directory" "$Q" --resume "$d" -q
+  cp "$work/x31.orig/grid.toml" "$d/grid.toml"
+  diff -r "$work/x31.orig" "$d"  # every refusal left the run as it was
+  "$Q" --resume "$d" -q
+  (cd "$d" && find . -type f -exec md5sum {} + | sort) > "$work/x31.before"
+  cp -al "$work/x31" "$work/x31-copy"
+  "$Q" --resume "$(run_dir "$work/x31-copy")" -q --set experiment.loops=6
+  (cd "$d" && find . -type f -exec md5sum {} + | sort) > "$work/x31.after"
+  diff "$work/x31.before" "$work/x31.after" || { echo "extending the copy changed the original"; return 1; }
+  "$Q" "$cvt" -o "$work/x31-ref" -q --workers 1 --set experiment.loops=6 > /dev/null
+  same_results "$(run_dir "$work/x31-ref")" "$(run_dir "$work/x31-copy")"
+}
+extra_32() {  # a sweep stopped by SIGUSR1 (any stop signal, not only SIGTERM): passed on to its runs, said
+  sweep_stopped_by USR1 138 10
+}
+extra_33() {  # a sweep that planned to restart a run finds another qdrun running it: that run's files stay
+  "$Q" "$exp" -o "$work/x33" -q --workers 1 "${loop0[@]}" & pid=$!
+  for _ in $(seq 1 3000); do grep -qx running "$work"/x33/*/*/status 2> /dev/null && break; sleep 0.01; done
+  kill -TERM $pid; wait $pid || true
+  d=$(run_dir "$work/x33")
+  [ ! -e "$d/checkpoint.bin" ] || { echo "loop 0 was checkpointed already (too short on this machine?)"; return 1; }
+  # The sweep plans seed 7 as a restart, and runs seed 8 first; meanwhile seed 7 is resumed by hand.
+  "$Q" "$exp" --seeds 8,7 -o "$work/x33" --workers 1 --jobs 1 "${loop0[@]}" > "$work/x33.out" & sweep=$!
+  for _ in $(seq 1 3000); do grep -q "start  smoke-iso/seed-8" "$work/x33.out" && break; sleep 0.01; done
+  "$Q" --resume "$d" -q --workers 1 & first=$!
+  wait $sweep && got=0 || got=$?
+  wait $first || { echo "the resumed run failed"; return 1; }
+  [ $got -eq 1 ] && grep -q "FAILED smoke-iso/seed-7: .*is in use by qdrun\|already holds a run" "$work/x33.out" \
+    || { echo "sweep exit $got: $(cat "$work/x33.out")"; return 1; }
+  is_complete "$d"; same_results "$(reference ref0)" "$d"
+  [ "$(head -n 1 "$d/metrics.csv" | cut -d, -f1)" = loop ] && [ -e "$d/config.toml" ] && [ -e "$d/provenance.toml" ]
+}
+extra_34() {  # replay's output named as a device, FIFO or directory: refused, the node left as it was
+  d=$(reference ref)
+  mkfifo "$work/x34.fifo"; mkdir "$work/x34.dir"
+  targets=("$work/x34.fifo" "$work/x34.dir")
+  if [ "$(id -u)" -eq 0 ]; then mknod -m 666 "$work/x34.null" c 1 3; targets+=("$work/x34.null"); fi
+  for t in "${targets[@]}"; do
+    before=$(stat -c %F "$t")
+    refused "--traces $t: .* not a regular file" "$Q" --replay "$d" --all --traces "$t" --workers 1
+    refused "--svg $t: .* not a regular file" "$Q" --replay "$d" --cell "$(sed -n 2p "$d/archive.csv" | cut -d, -f1)" --svg "$t"
+    [ "$(stat -c %F "$t")" = "$before" ] || { echo "$t is now a $(stat -c %F "$t")"; return 1; }
+  done
+}
+extra_35() {  # --seeds out of range, reversed or too many: one line, exit 2
+  refused "seed 99999999999999999999 is out of range \[0, 9000000000000000\]" "$Q" "$exp" --seeds 99999999999999999999 -o "$work/x35"
+  refused "the range '5-1' goes down" "$Q" "$exp" --seeds 5-1 -o "$work/x35"
+  refused "holds 200000 seeds, more than the 100000" "$Q" "$exp" --seeds 1-200000 -o "$work/x35"
+  refused "'-3' is not a non-negative integer" "$Q" "$exp" --seeds=-3 -o "$work/x35"
+  [ ! -e "$work/x35" ]
+}
+extra_36() {  # too little address space (ulimit -v): exit 4 naming what failed, never an internal failure
+  for v in $(seq 9000 3000 45000); do
+    rm -rf "$work/x36"
+    err=$( (ulimit -v $v; "$Q" "$exp" -o "$work/x36" -q --workers 2) 2>&1) && got=0 || got=$?
+    case $got in
+    127) continue ;;  # the dynamic loader could not map qdrun's libraries: qdrun never ran
+    0) is_complete "$(run_dir "$work/x36")" ;;
+    4) [ "$(grep -c . <<< "$err")" -eq 1 ] || { echo "ulimit -v $v: $err"; return 1; }
+       for s in "$work"/x36/*/*/status; do [ ! -e "$s" ] || ! grep -qx running "$s" || { echo "ulimit -v $v: status running"; return 1; }; done ;;
+    *) echo "ulimit -v $v: exit $got: $err"; return 1 ;;
+    esac
+  done
+}
+extra_37() {  # a directory where the status or a temporary file goes: exit 2 naming it, the run as it was
+  d=$(stopped_run x37)
+  cp -a "$d" "$work/x37.orig"
+  mv "$d/status" "$work/x37.status"; mkdir "$d/status"
+  refused "status is a directory, not a regular file" "$Q" --resume "$d" -q
+  rmdir "$d/status"; mv "$work/x37.status" "$d/status"
+  mkdir "$d/checkpoint.bin.tmp"
+  refused "checkpoint.bin.tmp is a directory, where qdrun writes its temporary file for checkpoint.bin" "$Q" --resume "$d" -q
+  grep -q "^failed: .*checkpoint.bin.tmp is a directory" "$d/status"
+  rmdir "$d/checkpoint.bin.tmp"
+  "$Q" --resume "$d" -q && same_results "$(reference ref)" "$d"
+}
+extra_38() {  # entries named like plugins that are no files (a dangling symlink, a loop, a FIFO, a directory)
+  mkdir "$work/x38"
+  ln -s /nowhere/qd_gone.so "$work/x38/qd_gone.so"; ln -s qd_loop.so "$work/x38/qd_loop.so"
+  mkfifo "$work/x38/qd_fifo.so"; mkdir "$work/x38/qd_dir.so"
+  out=$(timeout 60 "$Q" --list --plugin-path "$work/x38") || { echo "--list failed"; return 1; }
+  for what in "qd_gone.so: a symbolic link to nothing" "qd_loop.so: a symbolic link loop" "qd_fifo.so: a FIFO" \
+              "qd_dir.so: a directory"; do
+    grep -q "$what.*, not a shared library" <<< "$out" || { echo "--list does not say $what: $out"; return 1; }
+  done
+}
+extra_39() {  # an include cycle: named with its files, not followed to a depth limit
+  printf 'include = "x39-b.toml"\n' > "$work/x39-a.toml"; printf 'include = "x39-a.toml"\n' > "$work/x39-b.toml"
+  refused "x39-a.toml: an include cycle \(.*x39-a.toml -> .*x39-b.toml -> .*x39-a.toml\)" "$Q" "$work/x39-a.toml" -o "$work/x39"
+}
+extra_40() {  # too few file descriptors (ulimit -n): exit 4 naming the file, and the status says so
+  for n in $(seq 6 16); do
+    rm -rf "$work/x40"
+    err=$( (ulimit -n $n; "$Q" "$exp" -o "$work/x40" -q --workers 2) 2>&1) && got=0 || got=$?
+    case $got in
+    0) is_complete "$(run_dir "$work/x40")" ;;
+    4) [ "$(grep -c . <<< "$err")" -eq 1 ] && grep -q "Too many open files" <<< "$err" || { echo "ulimit -n $n: $err"; return 1; }
+       for s in "$work"/x40/*/*/status; do [ ! -e "$s" ] || grep -q "^failed: .*Too many open files" "$s" || { echo "ulimit -n $n: status $(cat "$s")"; return 1; }; done ;;
+    *) echo "ulimit -n $n: exit $got: $err"; return 1 ;;
+    esac
+  done
+}
+extra_41() {  # an experiment file edited while its sweep runs: later runs are refused, never run with the edit
+  cp "$exp" "$work/x41.toml"
+  "$Q" "$work/x41.toml" --seeds 1,2 -o "$work/x41" --workers 1 --jobs 1 "${long[@]}" > "$work/x41.out" & pid=$!
+  for _ in $(seq 1 3000); do grep -q "start  smoke-iso/seed-1" "$work/x41.out" && break; sleep 0.01; done
+  sed -i 's/^sigma = .*/sigma = 0.3/' "$work/x41.toml"
+  wait $pid && got=0 || got=$?
+  [ $got -eq 1 ] && grep -q "FAILED smoke-iso/seed-2: cannot start it: .*x41.toml (or a file it includes) changed since the sweep planned this run ('sigma = 0.1' then, 'sigma = 0.3' now)" "$work/x41.out" \
+    || { echo "exit $got: $(cat "$work/x41.out")"; return 1; }
+  is_complete "$work/x41/smoke-iso/seed-1"; grep -qx "sigma = 0.1" "$work/x41/smoke-iso/seed-1/config.toml"
+  [ ! -e "$work/x41/smoke-iso/seed-2/config.toml" ]
+}
+for n in $(seq -w 1 41); do
   title=$(grep -m1 "^extra_$n() {" "$0" | sed 's/.*# //')
   verdict "extra $n: $title" "extra_$n"
 done
@@ -549,7 +681,7 @@ for k in $(seq 1 "$kills"); do
   sleep "$(python3 -c "import random; print(random.uniform(0.3, 3.0))")"
   kill -9 $pid 2> /dev/null; wait $pid 2> /dev/null
   dir=$(run_dir "$work/k")
-  if grep -qx is_complete "$dir/status" 2> /dev/null; then identical=$((identical + 1)); continue; fi
+  if grep -qx complete "$dir/status" 2> /dev/null; then identical=$((identical + 1)); continue; fi
   if [ ! -e "$dir/checkpoint.bin" ]; then no_checkpoint=$((no_checkpoint + 1)); continue; fi
   "$Q" --resume "$dir" -q --workers 2 > /dev/null 2>&1
   if same_results "$full" "$dir" > /dev/null 2>&1; then identical=$((identical + 1)); else differed=$((differed + 1)); fi

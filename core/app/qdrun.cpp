@@ -1,10 +1,12 @@
 // qdrun: runs a Quality-Diversity experiment described by a TOML file.
 //
-// Exit codes: 0 success; 1 internal failure (a bug); 2 bad input (file, TOML, configuration,
-// plugins, run directory); 3 a plugin failed during the run (a rollout crashed, exited, hung or
-// threw; plugin output broke its contract) or a worker process or MPI rank died or hung; 4 a
-// system or I/O error (disk full, no memory, no process or thread could be created); 130 / 143
-// stopped by SIGINT / SIGTERM.
+// Exit codes (docs/user-guide.md, "Exit codes"): 0 success; 1 internal failure (a bug), or a
+// sweep with a failed run; 2 bad input (file, TOML, configuration, options, plugins, run
+// directory); 3 a plugin failed during the run (a rollout crashed, exited, hung or threw; plugin
+// output broke its contract) or a worker process or MPI rank died or hung; 4 a system or I/O error
+// (disk full, a file size limit, no memory, no process or thread, stdout lost); 128 + signal:
+// stopped by a stop signal (SIGHUP 129, SIGINT 130, SIGTERM 143, ...), or plugin code crashed in
+// qdrun's own process (SIGSEGV 139, SIGABRT 134).
 #include "progress.hpp"
 #include "run_guard.hpp"
 #include "runtime/components.hpp"
@@ -30,6 +32,8 @@
 #include <cstring>
 #include <iostream>
 #include <map>
+#include <new>
+#include <system_error>
 
 namespace po = boost::program_options;
 namespace fs = std::filesystem;
@@ -74,6 +78,16 @@ std::vector<std::string> split_path_list(const char* text) {
   return out;
 }
 
+// Why `dir` is no directory to search ("does not exist", "is a file", ...); empty when it is one.
+std::string not_a_directory(const std::string& dir) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(dir, ec);
+  if (fs::is_directory(st)) return "";
+  if (ec && ec != std::errc::no_such_file_or_directory) return "cannot be read (" + ec.message() + ")";
+  if (!fs::exists(st)) return "does not exist";
+  return "is not a directory";
+}
+
 // Search order, first hit wins: --plugin-path, QD_PLUGIN_PATH, [plugins] path, the directories a
 // run directory's config.toml recorded ([plugins] search_path, for --resume and friends), then
 // qdrun's own plugin directory (<prefix>/lib/qd/plugins; the build tree's only for the qdrun that
@@ -83,9 +97,8 @@ void setup_registry(Registry& reg, const Cli& cli, const std::vector<std::string
   // A directory the user names that is not there is a typo or a stale path: --plugin-path is an
   // error (check_options), the others are said once.
   auto warn_missing = [&](const std::string& dir, const std::string& from) {
-    std::error_code ec;
-    if (!cli.quiet && !fs::is_directory(dir, ec))
-      std::fprintf(stderr, "qdrun: warning: plugin directory %s (%s) does not exist\n", dir.c_str(), from.c_str());
+    if (const std::string why = not_a_directory(dir); !cli.quiet && !why.empty())
+      std::fprintf(stderr, "qdrun: warning: plugin directory %s (%s) %s\n", dir.c_str(), from.c_str(), why.c_str());
   };
   for (const auto& p : cli.plugin_paths) reg.add_search_dir(p);
   for (const auto& p : split_path_list(std::getenv("QD_PLUGIN_PATH"))) {
@@ -253,6 +266,16 @@ int run_one(const Cli& cli, const std::string& command_line) {
                  "qdrun: note: %s held the start of this run, which stopped before its first checkpoint (nothing "
                  "to keep): started again from loop 0\n",
                  run.directory().c_str());
+  // One descriptor held back: a run that fails because it ran out of them (ulimit -n, a plugin that
+  // leaks them) can still write its status.
+  struct Spare {
+    int fd = ::open("/dev/null", O_RDONLY | O_CLOEXEC);
+    void release() {
+      if (fd >= 0) ::close(fd);
+      fd = -1;
+    }
+    ~Spare() { release(); }
+  } spare;
   try {
     const bool finished = run.run();
     printer.finish();
@@ -267,8 +290,10 @@ int run_one(const Cli& cli, const std::string& command_line) {
                                  ? "the last checkpoint is intact: fix the cause and qdrun --resume " + dir
                                  : "no checkpoint was written yet: fix the cause and start again (qdrun --resume " +
                                        dir + " starts it from loop 0)";
+    spare.release();
+    const std::string what = dynamic_cast<const std::bad_alloc*>(&e) ? "out of memory" : e.what();
     try {
-      write_file_atomic(run.directory() / "status", "failed: " + std::string(e.what()) + " (" + next + ")\n");
+      write_file_atomic(run.directory() / "status", "failed: " + what + " (" + next + ")\n");
     } catch (const std::exception&) {
       // The error itself is what the user must see; the status keeps "running".
     }
@@ -304,6 +329,11 @@ std::unique_ptr<Run> open_run_directory(const Cli& cli, const fs::path& dir, Reg
 // could no longer be resumed): in the run directory only their own outputs or new names.
 void check_output_beside_run(const fs::path& out, const fs::path& dir, const std::string& option) {
   require_run_directory(dir);
+  try {
+    require_replaceable(out);  // before the replay: never a device or FIFO swapped for a file
+  } catch (const InputError& e) {
+    throw InputError(option + " " + out.string() + ": " + e.what());
+  }
   std::error_code ec;
   const fs::path parent = fs::weakly_canonical(fs::absolute(out, ec).parent_path(), ec);
   if (!fs::is_directory(parent, ec))
@@ -401,10 +431,10 @@ void check_options(const Cli& cli, const po::variables_map& vm) {
   if (cli.jobs < 0 || cli.jobs > 4096)
     throw InputError("--jobs " + std::to_string(cli.jobs) + " is out of range [0, 4096] (0: all cores)");
   for (const auto& p : cli.plugin_paths) {
-    std::error_code ec;
     if (p.empty()) throw InputError("--plugin-path needs a directory, and got an empty one");
-    if (!fs::is_directory(p, ec))
-      throw InputError("--plugin-path " + p + ": " + (fs::exists(p, ec) ? "not a directory" : "no such directory"));
+    if (const std::string why = not_a_directory(p); !why.empty())
+      throw InputError("--plugin-path " + p + ": " +
+                       (why == "does not exist" ? std::string("no such directory") : why));
   }
 }
 
@@ -540,6 +570,10 @@ int qdrun_main(int argc, char** argv) {
     return kExitSystem;
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "qdrun: system error: out of memory\n");
+    return kExitSystem;
+  } catch (const std::system_error& e) {
+    // The system refused a thread, a lock or a file operation (std::thread, std::filesystem).
+    std::fprintf(stderr, "qdrun: system error: %s\n", e.what());
     return kExitSystem;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "qdrun: internal failure: %s\n", e.what());

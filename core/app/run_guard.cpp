@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <iterator>
 #include <string>
 
 namespace qd::app {
@@ -273,6 +274,12 @@ bool has_default_action(int sig) {
 
 }  // namespace
 
+std::vector<int> stop_signals() {
+  std::vector<int> out(std::begin(kStopSignals), std::end(kStopSignals));
+  for (int sig = SIGRTMIN; sig <= SIGRTMAX; ++sig) out.push_back(sig);
+  return out;
+}
+
 void guard_run(const std::filesystem::path& run_dir, bool terminal, bool handle_stop_signals) {
   const std::string status = (run_dir / "status").string();
   std::snprintf(g_status_path, sizeof(g_status_path), "%s", status.c_str());
@@ -292,11 +299,9 @@ void guard_run(const std::filesystem::path& run_dir, bool terminal, bool handle_
     sa.sa_handler = on_stop_signal;
     sigemptyset(&sa.sa_mask);
     // One handler at a time: a second stop signal waits for the _exit.
-    for (const int sig : kStopSignals) sigaddset(&sa.sa_mask, sig);
-    for (int sig = SIGRTMIN; sig <= SIGRTMAX; ++sig) sigaddset(&sa.sa_mask, sig);
-    for (const int sig : kStopSignals)
-      if (has_default_action(sig)) ::sigaction(sig, &sa, nullptr);
-    for (int sig = SIGRTMIN; sig <= SIGRTMAX; ++sig)
+    const std::vector<int> stops = stop_signals();
+    for (const int sig : stops) sigaddset(&sa.sa_mask, sig);
+    for (const int sig : stops)
       if (has_default_action(sig)) ::sigaction(sig, &sa, nullptr);
   }
 

@@ -19,8 +19,13 @@
 #pragma once
 
 #include <filesystem>
+#include <vector>
 
 namespace qd::app {
+
+// The stop signals above (those whose default action ends qdrun without a word, the real-time
+// signals included): what a run handles as SIGTERM, and what a sweep passes on to its runs.
+std::vector<int> stop_signals();
 
 // Installs the handlers for the run in `run_dir` (from the thread that drives the loop). On a stop
 // signal: a newline if a live line is open on a terminal, one line on stderr, status "stopped by

@@ -1,5 +1,6 @@
 #include "sweep.hpp"
 
+#include "run_guard.hpp"
 #include "runtime/checkpoint.hpp"
 #include "runtime/components.hpp"
 #include "runtime/cost_estimate.hpp"
@@ -20,6 +21,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <charconv>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -57,8 +59,9 @@ std::string last_line(const fs::path& p) {
   return last;
 }
 
-// First line where two texts differ, for the message about a run directory that holds another run.
-std::string first_difference(const std::string& a, const std::string& b) {
+// First line where two texts differ, for the message about a run directory that holds another run
+// (or a file changed since the plan: `then` instead of "there").
+std::string first_difference(const std::string& a, const std::string& b, const char* then = "there") {
   std::istringstream ia(a), ib(b);
   std::string la, lb;
   while (true) {
@@ -66,7 +69,7 @@ std::string first_difference(const std::string& a, const std::string& b) {
     if (!ga && !gb) return "";
     if (!ga) la = "<end>";
     if (!gb) lb = "<end>";
-    if (la != lb) return "'" + la + "' there, '" + lb + "' now";
+    if (la != lb) return "'" + la + "' " + then + ", '" + lb + "' now";
   }
 }
 
@@ -98,7 +101,8 @@ struct PlannedRun {
   std::string file;                // the experiment file, and the overrides the run gets
   std::vector<std::string> overrides;
   const std::uint64_t* seed = nullptr;
-  int first_loop = 0;  // the loop a resumed run starts at
+  int first_loop = 0;    // the loop a resumed run starts at
+  std::string resolved;  // the configuration planned (canonical), checked again at its start
 };
 
 class RegistryCache {
@@ -178,6 +182,24 @@ int completed_loops(const fs::path& metrics, int iterations) {
   return done;
 }
 
+// The configuration a run of `file` gets (canonical, components not built): what the sweep planned,
+// and checked again when the run starts.
+std::string run_configuration(const SweepOptions& o, const std::string& file, const std::uint64_t* seed,
+                              const std::vector<std::string>& overrides, RegistryCache& regs) {
+  const Document doc = read_run_document(o, file, seed, overrides);
+  return canonical(runtime::resolve(doc, regs.get(doc.plugin_paths())).resolved_toml);
+}
+
+// A run starts with the configuration the sweep planned and checked, or not at all: its experiment
+// file (or one it includes) edited while the sweep runs, a sweep of hours, would otherwise give
+// runs of two configurations under one name without a word.
+void check_unchanged(const SweepOptions& o, const PlannedRun& r, RegistryCache& regs) {
+  const std::string now = run_configuration(o, r.file, r.seed, r.overrides, regs);
+  if (now != r.resolved)
+    throw InputError(r.file + " (or a file it includes) changed since the sweep planned this run (" +
+                     first_difference(r.resolved, now, "then") + "); run the sweep again to plan with it");
+}
+
 PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::uint64_t* seed, RegistryCache& regs) {
   std::vector<std::string> overrides = o.sets;
   auto read = [&](const std::vector<std::string>& extra) { return read_run_document(o, file, seed, extra); };
@@ -207,6 +229,7 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
   p.seed = seed;
   p.dir = now.dir;
   p.label = now.settings.name + "/seed-" + std::to_string(now.settings.seed);
+  p.resolved = run_configuration(o, file, seed, overrides, regs);
   p.child.push_back(file);
   if (seed) p.child.insert(p.child.end(), {"--seed", std::to_string(*seed)});
   if (!o.output.empty()) p.child.insert(p.child.end(), {"--output", o.output});
@@ -278,13 +301,15 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
   return p;
 }
 
-// A sweep stopped by SIGINT, SIGTERM or SIGHUP passes the signal on to its runs, so each stops as
-// qdrun does alone (its status says where, --resume continues), waits for them and says so; no new
-// run starts. Runs are tracked where the handler can read them (async-signal-safe). SIGPIPE is
-// ignored.
+// A sweep stopped by a stop signal (SIGINT, SIGTERM, SIGHUP, SIGUSR1, ...: those a run handles as
+// SIGTERM, run_guard.hpp) passes it on to its runs, so each stops as qdrun does alone (its status
+// says where, --resume continues), waits for them and says so; no new run starts. A signal the
+// sweep was started with ignored (nohup) stays ignored, for the runs too. Runs are tracked where
+// the handler can read them (async-signal-safe). SIGPIPE is ignored.
 constexpr std::size_t kMaxChildren = 4096;  // --jobs at most
 std::atomic<pid_t> g_children[kMaxChildren];
 volatile std::sig_atomic_t g_stop_signal = 0;
+std::vector<int> g_forwarded;  // the signals the sweep forwards (set before any child starts)
 
 void track_child(pid_t pid, bool running) {
   for (auto& c : g_children) {
@@ -309,9 +334,11 @@ struct StopForwarding {
     std::memset(&sa, 0, sizeof(sa));
     sa.sa_handler = on_sweep_stop;
     sigemptyset(&sa.sa_mask);
-    for (const int sig : {SIGINT, SIGTERM, SIGHUP}) {
+    for (const int sig : stop_signals()) {
       struct sigaction now;
-      if (::sigaction(sig, nullptr, &now) == 0 && now.sa_handler == SIG_DFL) ::sigaction(sig, &sa, nullptr);
+      if (::sigaction(sig, nullptr, &now) != 0 || (now.sa_flags & SA_SIGINFO) || now.sa_handler != SIG_DFL) continue;
+      g_forwarded.push_back(sig);
+      ::sigaction(sig, &sa, nullptr);
     }
   }
 };
@@ -339,7 +366,7 @@ pid_t start_child(const std::string& exe, const std::vector<std::string>& args, 
     throw SystemError(std::string("cannot start a run: fork failed: ") + std::strerror(errno));
   }
   if (pid == 0) {
-    for (const int sig : {SIGINT, SIGTERM, SIGHUP}) ::signal(sig, SIG_DFL);  // not the sweep's forwarding
+    for (const int sig : g_forwarded) ::signal(sig, SIG_DFL);  // not the sweep's forwarding; ignored ones stay so
     ::prctl(PR_SET_PDEATHSIG, SIGKILL);
     if (::getppid() != parent) ::_exit(127);  // the sweep died before prctl took effect
     ::dup2(fd, STDOUT_FILENO);
@@ -489,22 +516,34 @@ void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& r
 }  // namespace
 
 std::vector<std::uint64_t> parse_seed_list(const std::string& text) {
+  constexpr std::uint64_t kMaxSeed = 9000000000000000;  // experiment.seed's range
+  constexpr std::uint64_t kMaxRange = 100000;
   std::vector<std::uint64_t> out;
   std::stringstream ss(text);
   std::string part;
-  auto number = [&](const std::string& s) {
-    if (s.empty() || s.find_first_not_of("0123456789") != std::string::npos)
-      throw InputError("--seeds " + text + ": '" + s + "' is not a non-negative integer (use 100,200,300 or 1-5)");
-    return std::stoull(s);
+  auto number = [&](const std::string& s, const std::string& in) {
+    std::uint64_t v = 0;
+    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    if (s.empty() || end != s.data() + s.size() || (ec != std::errc() && ec != std::errc::result_out_of_range))
+      throw InputError("--seeds " + text + ": '" + in +
+                       "' is not a non-negative integer or a range (use 100,200,300 or 1-5)");
+    if (ec == std::errc::result_out_of_range || v > kMaxSeed)
+      throw InputError("--seeds " + text + ": seed " + s + " is out of range [0, " + std::to_string(kMaxSeed) + "]");
+    return v;
   };
   while (std::getline(ss, part, ',')) {
-    const std::size_t dash = part.find('-');
+    const std::size_t dash = part.find('-', 1);
     if (dash == std::string::npos) {
-      out.push_back(number(part));
+      out.push_back(number(part, part));
       continue;
     }
-    const std::uint64_t a = number(part.substr(0, dash)), b = number(part.substr(dash + 1));
-    if (b < a || b - a > 100000) throw InputError("--seeds " + text + ": bad range '" + part + "'");
+    const std::uint64_t a = number(part.substr(0, dash), part), b = number(part.substr(dash + 1), part);
+    if (b < a)
+      throw InputError("--seeds " + text + ": the range '" + part + "' goes down (write it " + std::to_string(b) + "-" +
+                       std::to_string(a) + ")");
+    if (b - a >= kMaxRange)
+      throw InputError("--seeds " + text + ": the range '" + part + "' holds " + std::to_string(b - a + 1) +
+                       " seeds, more than the " + std::to_string(kMaxRange) + " a sweep takes");
     for (std::uint64_t s = a; s <= b; ++s) out.push_back(s);
   }
   if (out.empty()) throw InputError("--seeds: empty list");
@@ -601,18 +640,35 @@ int run_sweep(const SweepOptions& o,
     while (next < pending.size() && static_cast<int>(running.size()) < concurrent && !g_stop_signal) {
       const std::size_t i = pending[next++];
       PlannedRun& r = runs[i];
-      std::error_code ec;
-      if (r.action == Action::kRestart) runtime::RunDirectory::remove_unfinished_start(r.dir);
-      fs::create_directories(r.dir, ec);
-      if (ec) throw InputError("cannot create the run directory " + r.dir.string() + ": " + ec.message());
+      // What a run that died before its first checkpoint left (Action::kRestart) is removed by the
+      // run itself, under its lock: another qdrun may have taken the directory since it was
+      // planned (two sweeps of one output directory), and its files are not the sweep's to delete.
       std::vector<std::string> args = r.child;
       args.insert(args.end(), {"--workers", std::to_string(workers)});  // per-loop lines go to the log
       for (const auto& p : o.plugin_paths) args.insert(args.end(), {"--plugin-path", p});
-      const pid_t pid = start_child(exe, args, r.dir / "qdrun.log");
+      pid_t pid = -1;
+      try {
+        check_unchanged(o, r, regs);
+        std::error_code ec;
+        fs::create_directories(r.dir, ec);
+        if (ec) throw InputError("cannot create the run directory " + r.dir.string() + ": " + ec.message());
+        pid = start_child(exe, args, r.dir / "qdrun.log");
+      } catch (const Error& e) {
+        // This run cannot start (its directory changed since it was planned, no process left):
+        // the others go on, and the sweep ends with the runs that failed.
+        failed.push_back(r.label);
+        std::printf("%s FAILED %s: cannot start it: %s\n", tag(i).c_str(), r.label.c_str(), e.what());
+        std::fflush(stdout);
+        continue;
+      }
       running[pid] = {i, now_seconds()};
       track_child(pid, true);
       std::printf("%s start  %s (%s)\n", tag(i).c_str(), r.label.c_str(), r.why.c_str());
       std::fflush(stdout);
+    }
+    if (running.empty()) {
+      if (g_stop_signal) break;  // stopped between two runs: none is left to wait for
+      continue;                  // every run left failed to start
     }
     int wstatus = 0;
     const pid_t pid = ::waitpid(-1, &wstatus, 0);

@@ -8,6 +8,8 @@
 #include <boost/dll/shared_library.hpp>
 
 #include <dlfcn.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <algorithm>
 #include <string>
 #include <vector>
@@ -331,4 +333,32 @@ TEST(Discovery, HostileLibrariesAreRejectedByNameAndNothingIsLoadedUntilUsed) {
   void* handle = ::dlopen(misspelt.c_str(), RTLD_NOW | RTLD_NOLOAD);
   EXPECT_NE(handle, nullptr) << "constructing its component loads the library";
   if (handle) ::dlclose(handle);
+}
+
+// Entries named like plugins that are no library file (a dangling symlink left by a removed build,
+// a symlink loop, a FIFO, a directory) are listed with what they are, never skipped without a word
+// and never opened (a FIFO would block).
+TEST(Discovery, EntriesThatAreNoFilesAreRejectedByName) {
+  const fs::path d = fs::temp_directory_path() / ("qd_loader_entries-" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d / "qd_dir.so");
+  fs::create_symlink("/nowhere/qd_gone.so", d / "qd_gone.so");
+  fs::create_symlink("qd_loop.so", d / "qd_loop.so");
+  ASSERT_EQ(::mkfifo((d / "qd_fifo.so").c_str(), 0644), 0);
+  fs::copy_file(plugin("good"), d / "qd_good.so");
+  Registry reg;
+  reg.add_search_dir(d);
+  reg.discover();
+  EXPECT_NE(reg.find("test-counted"), nullptr);
+  std::vector<std::string> reasons;
+  for (const auto& r : reg.rejected()) reasons.push_back(r.reason);
+  ASSERT_EQ(reasons.size(), 4u) << ::testing::PrintToString(reasons);
+  for (const char* expected :
+       {"qd_dir.so: a directory, not a shared library", "qd_fifo.so: a FIFO, not a shared library",
+        "qd_gone.so: a symbolic link to nothing", "qd_loop.so: a symbolic link loop"}) {
+    EXPECT_TRUE(std::any_of(reasons.begin(), reasons.end(),
+                            [&](const std::string& r) { return r.find(expected) != std::string::npos; }))
+        << expected << " in " << ::testing::PrintToString(reasons);
+  }
+  fs::remove_all(d);
 }

@@ -180,6 +180,31 @@ TEST(Config, IncludesMergeAndTheIncludingFileWins) {
   fs::remove_all(dir);
 }
 
+// An include cycle is named with the files that make it, not followed until a depth limit; one file
+// included twice without a cycle (a diamond) is fine.
+TEST(Config, IncludeCycleIsNamedAndADiamondIsNoCycle) {
+  const fs::path dir = fs::temp_directory_path() / "qd_config_include_cycle_test";
+  fs::create_directories(dir);
+  std::ofstream(dir / "a.toml") << "include = \"b.toml\"\n";
+  std::ofstream(dir / "b.toml") << "include = \"sub/../a.toml\"\n";
+  fs::create_directories(dir / "sub");
+  try {
+    Document::read(dir / "a.toml");
+    FAIL();
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    const std::string a = fs::canonical(dir / "a.toml").string(), b = fs::canonical(dir / "b.toml").string();
+    EXPECT_NE(what.find(": an include cycle (" + a + " -> " + b + " -> " + a + ")"), std::string::npos) << what;
+    EXPECT_EQ(what.find("(included from", what.find("(included from") + 1), what.rfind("(included from")) << what;
+  }
+  std::ofstream(dir / "base.toml") << kValid;
+  std::ofstream(dir / "left.toml") << "include = \"base.toml\"\n";
+  std::ofstream(dir / "right.toml") << "include = \"base.toml\"\n[mutator]\nsigma = 0.4\n";
+  std::ofstream(dir / "top.toml") << "include = [\"left.toml\", \"right.toml\"]\n";
+  EXPECT_EQ(resolve(Document::read(dir / "top.toml"), registry()).mutator.config.get_float("sigma"), 0.4);
+  fs::remove_all(dir);
+}
+
 // Bare words are strings (nan, inf and dates included); numbers stay numbers, true/false booleans.
 TEST(Config, OverrideValuesAreTypedAsDocumented) {
   auto resolved = [](const std::vector<std::string>& sets) {

@@ -7,6 +7,7 @@
 
 #include <fcntl.h>
 #include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <unistd.h>
 #include <algorithm>
 #include <cmath>
@@ -181,5 +182,38 @@ TEST(RunFiles, ReadingRefusesFifosAndDevicesAtOnceAndBoundsTheSize) {
             std::string::npos);
   EXPECT_EQ(read_run_file_prefix(d / "status", 10), std::string(10, 'x'));
   EXPECT_NE(error_of([&] { read_run_file(d / "missing", 100); }).find("is missing"), std::string::npos);
+  fs::remove_all(d);
+}
+
+// What a rename would destroy or cannot replace is refused before anything is written: a device
+// or FIFO named as an output (--traces /dev/null, as root, became a regular file), a directory in
+// place of the file or of its temporary file. A symlink is replaced, never written through.
+TEST(AtomicFile, NeverReplacesADeviceFifoOrDirectory) {
+  const fs::path d = fresh_directory("replace");
+  ASSERT_EQ(::mkfifo((d / "fifo.csv").c_str(), 0644), 0);
+  fs::create_directory(d / "dir.csv");
+  fs::create_directory(d / "status.tmp");
+  EXPECT_NE(error_of([&] { write_file_atomic(d / "fifo.csv", "x\n"); }).find("fifo.csv is a FIFO, not a regular file"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { write_file_atomic(d / "dir.csv", "x\n"); }).find("dir.csv is a directory"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              write_file_atomic(d / "status", "x\n");
+            }).find("status.tmp is a directory, where qdrun writes its temporary file for status"),
+            std::string::npos);
+  EXPECT_TRUE(fs::is_fifo(d / "fifo.csv"));
+  EXPECT_FALSE(fs::exists(d / "fifo.csv.tmp"));
+  EXPECT_FALSE(fs::exists(d / "status"));
+  std::ofstream(d / "target") << "target\n";
+  fs::create_symlink(d / "target", d / "link.csv");
+  write_file_atomic(d / "link.csv", "new\n");
+  EXPECT_EQ(slurp(d / "target"), "target\n");
+  EXPECT_FALSE(fs::is_symlink(d / "link.csv"));
+  EXPECT_EQ(slurp(d / "link.csv"), "new\n");
+  if (::geteuid() == 0 && ::mknod((d / "null").c_str(), S_IFCHR | 0666, makedev(1, 3)) == 0) {
+    EXPECT_NE(error_of([&] { write_file_atomic(d / "null", "x\n"); }).find("null is a character device"),
+              std::string::npos);
+    EXPECT_TRUE(fs::is_character_file(d / "null"));
+  }
   fs::remove_all(d);
 }

@@ -19,6 +19,7 @@
 #include <fstream>
 #include <numeric>
 #include <sstream>
+#include <system_error>
 
 namespace qd::runtime {
 namespace fs = std::filesystem;
@@ -99,7 +100,16 @@ std::string blob_of(const Component& component) {
 }  // namespace
 
 CheckpointStore::CheckpointStore(fs::path dir, std::size_t param_count, std::size_t descriptor_dims)
-    : dir_(std::move(dir)), param_count_(param_count), dims_(descriptor_dims), thread_([this] { work(); }) {}
+    : dir_(std::move(dir)), param_count_(param_count), dims_(descriptor_dims), thread_(start_writer()) {}
+
+std::thread CheckpointStore::start_writer() {
+  try {
+    return std::thread([this] { work(); });
+  } catch (const std::system_error& e) {
+    // A thread limit (ulimit -u, a container's pids.max) or no memory for its stack (ulimit -v).
+    throw SystemError(std::string("cannot start the checkpoint writer thread: ") + e.what());
+  }
+}
 
 CheckpointStore::~CheckpointStore() {
   {

@@ -118,6 +118,7 @@ class CheckpointStore {
   };
   void write(const Job& job) const;
   void work();
+  std::thread start_writer();  // the thread that runs work(); SystemError when none can be had
   std::filesystem::path archive_log(std::uint64_t generation) const;
   void load_archive(Archive& archive, std::uint64_t slots, bool tidy);
   void load_dataset(Dataset& dataset, std::uint64_t rows);

@@ -15,6 +15,13 @@
 namespace qd::runtime {
 namespace fs = std::filesystem;
 
+namespace {
+// What a run's grid.toml and centroids.csv can hold at most (the largest CVT, 10^7 cells, writes
+// about 2.5 GB of centroids in 10 dimensions): more is not a file qdrun wrote.
+constexpr std::uint64_t kMaxGridTomlBytes = std::uint64_t{16} << 20;
+constexpr std::uint64_t kMaxCentroidsBytes = std::uint64_t{4} << 30;
+}  // namespace
+
 std::string centroids_csv(const GridSpec& g) {
   const std::size_t dims = g.dims();
   std::string out = "centroid";
@@ -74,11 +81,12 @@ std::string grid_toml(const GridSpec& g) {
 
 bool read_stored_grid(const fs::path& run_dir, GridSpec& g) {
   const fs::path file = run_dir / "grid.toml";
-  std::error_code ec;
-  if (!fs::exists(file, ec)) return false;
+  if (!exists_nofollow(file)) return false;
+  // Files of the run directory: regular, read without blocking and only up to what they can hold
+  // (a FIFO or a symlink to /dev/zero there is refused, StateError).
   toml::table t;
   try {
-    t = toml::parse_file(file.string());
+    t = toml::parse(read_run_file(file, kMaxGridTomlBytes), file.string());
   } catch (const toml::parse_error& e) {
     throw StateError(file.string() + " is not valid TOML: " + std::string(e.description()));
   }
@@ -94,12 +102,14 @@ bool read_stored_grid(const fs::path& run_dir, GridSpec& g) {
   list("upper", [&](const toml::node& x) { g.upper.push_back(x.value_or(0.0)); });
   if (t["kind"].value_or(std::string("grid")) != "cvt") return true;
 
-  const fs::path csv_file = run_dir / t["centroids"].value_or(std::string("centroids.csv"));
-  std::ifstream in(csv_file, std::ios::binary);
-  if (!in) throw StateError(csv_file.string() + " is missing (grid.toml names it: the run's CVT centroids)");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  const std::string csv = ss.str();
+  const std::string name = t["centroids"].value_or(std::string("centroids.csv"));
+  if (name.empty() || name == "." || name == ".." || name.find('/') != std::string::npos)
+    throw StateError(file.string() + " names the centroids file '" + name +
+                     "', which is no file of the run directory (qdrun writes centroids.csv)");
+  const fs::path csv_file = run_dir / name;
+  if (!exists_nofollow(csv_file))
+    throw StateError(csv_file.string() + " is missing (grid.toml names it: the run's CVT centroids)");
+  const std::string csv = read_run_file(csv_file, kMaxCentroidsBytes);
   char crc[16];
   std::snprintf(crc, sizeof(crc), "%08x", crc32c(csv.data(), csv.size()));
   if (t["centroids_crc32c"].value_or(std::string()) != crc)
@@ -112,7 +122,13 @@ bool read_stored_grid(const fs::path& run_dir, GridSpec& g) {
     std::istringstream row(line);
     std::string field;
     std::getline(row, field, ',');  // centroid index
-    for (std::size_t d = 0; d < dims && std::getline(row, field, ','); ++d) g.centroids.push_back(std::stod(field));
+    for (std::size_t d = 0; d < dims && std::getline(row, field, ','); ++d) {
+      try {
+        g.centroids.push_back(std::stod(field));
+      } catch (const std::exception&) {
+        throw StateError(csv_file.string() + ": '" + field + "' is not a number");
+      }
+    }
   }
   if (dims == 0 || g.centroids.size() != static_cast<std::size_t>(g.cells) * dims)
     throw StateError(csv_file.string() + " holds " + std::to_string(g.centroids.size()) + " values for " +

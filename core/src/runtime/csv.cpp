@@ -48,6 +48,18 @@ void write_all(int fd, const char* bytes, std::size_t size, const fs::path& path
 }
 
 namespace {
+
+// What a file that is not a regular one is, for the messages.
+std::string what_it_is(mode_t mode) {
+  if (S_ISFIFO(mode)) return "a FIFO";
+  if (S_ISCHR(mode)) return "a character device";
+  if (S_ISBLK(mode)) return "a block device";
+  if (S_ISDIR(mode)) return "a directory";
+  if (S_ISSOCK(mode)) return "a socket";
+  if (S_ISLNK(mode)) return "a symbolic link";
+  return "not a file";
+}
+
 // Moves a flushed temporary file over `path`, then flushes the directory so the rename survives
 // a crash.
 void rename_durably(const fs::path& tmp, const fs::path& path) {
@@ -70,10 +82,18 @@ void write_file_atomic(const fs::path& path, const std::string& content) {
 }
 
 AtomicFile::AtomicFile(fs::path path) : path_(std::move(path)), tmp_(path_.string() + ".tmp") {
+  require_replaceable(path_);
   // A leftover of an interrupted write, or a symlink someone put there: never written through.
   ::unlink(tmp_.c_str());
   fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
-  if (fd_ < 0) throw SystemError("cannot create " + tmp_.string() + ": " + std::strerror(errno));
+  if (fd_ < 0) {
+    const int e = errno;
+    struct stat st;
+    if (e == EEXIST && ::lstat(tmp_.c_str(), &st) == 0)  // what unlink could not remove: a directory
+      throw InputError(tmp_.string() + " is " + what_it_is(st.st_mode) +
+                       ", where qdrun writes its temporary file for " + path_.filename().string() + "; move it away");
+    throw SystemError("cannot create " + tmp_.string() + ": " + std::strerror(e));
+  }
 }
 
 AtomicFile::~AtomicFile() {
@@ -117,16 +137,6 @@ void append_to_file(const fs::path& path, const std::string& text) {
 }
 
 namespace {
-
-std::string what_it_is(mode_t mode) {
-  if (S_ISFIFO(mode)) return "a FIFO";
-  if (S_ISCHR(mode)) return "a character device";
-  if (S_ISBLK(mode)) return "a block device";
-  if (S_ISDIR(mode)) return "a directory";
-  if (S_ISSOCK(mode)) return "a socket";
-  if (S_ISLNK(mode)) return "a symbolic link";
-  return "not a file";
-}
 
 std::string not_regular(const fs::path& path, const std::string& kind) {
   return path.string() + " is " + kind + ", not a regular file (a run directory's files are regular files of its own)";
@@ -254,6 +264,14 @@ std::string read_run_file_prefix(const fs::path& path, std::uint64_t size) {
 bool exists_nofollow(const fs::path& path) {
   struct stat st;
   return ::lstat(path.c_str(), &st) == 0;
+}
+
+void require_replaceable(const fs::path& path) {
+  struct stat st;
+  if (::lstat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISLNK(st.st_mode))
+    throw InputError(path.string() + " is " + what_it_is(st.st_mode) +
+                     ", not a regular file: qdrun writes a new file in its place, and never in place of a "
+                     "directory, device, FIFO or socket; move it away or name another file");
 }
 
 void require_regular_or_absent(const fs::path& path) {

@@ -22,7 +22,8 @@ void write_all(int fd, const char* bytes, std::size_t size, const std::filesyste
 // Writes `content` to `path` atomically: a temporary file in the same directory, fsync, rename.
 // Readers see either the old file or the new one, never a torn write. The temporary file is made
 // anew (never opened through a symlink someone left in its place); `path` itself is replaced, so a
-// hard link or symlink there is never written through.
+// hard link or symlink there is never written through. A directory, device, FIFO or socket at
+// `path` is refused (require_replaceable).
 void write_file_atomic(const std::filesystem::path& path, const std::string& content);
 
 // Writes a large file piece by piece to "<path>.tmp" and moves it over `path` on commit().
@@ -80,6 +81,10 @@ std::string read_run_file(const std::filesystem::path& path, std::uint64_t max_b
 std::string read_run_file_prefix(const std::filesystem::path& path, std::uint64_t size);
 // Whether `path` exists as anything (a dangling symlink too), without following it.
 bool exists_nofollow(const std::filesystem::path& path);
+// Throws qd::InputError naming `path` when a directory, device, FIFO or socket is there: what
+// write_file_atomic must not replace (a rename would swap `--traces /dev/null` for a regular file).
+// A regular file or a symlink (replaced, never written through) is fine.
+void require_replaceable(const std::filesystem::path& path);
 // Throws qd::InputError naming `path` when something other than a regular file is there.
 void require_regular_or_absent(const std::filesystem::path& path);
 

@@ -253,9 +253,17 @@ void layer(Layered& base, Layered&& over) {
   deep_merge(base.root, std::move(over.root));
 }
 
-Layered parse_file(const fs::path& file, int depth) {
-  if (depth > 16) throw InputError(file.string() + ": includes nest more than 16 levels (a cycle?)");
+// `chain`: the files that include this one, outermost first (an include cycle is named, not
+// followed).
+Layered parse_file(const fs::path& file, std::vector<fs::path>& chain) {
   std::error_code ec;
+  const fs::path canonical = fs::weakly_canonical(fs::absolute(file, ec), ec);
+  if (const auto seen = std::find(chain.begin(), chain.end(), canonical); seen != chain.end()) {
+    std::string cycle;
+    for (auto it = seen; it != chain.end(); ++it) cycle += it->string() + " -> ";
+    throw InputError(file.string() + ": an include cycle (" + cycle + canonical.string() + ")");
+  }
+  if (chain.size() > 16) throw InputError(file.string() + ": includes nest more than 16 levels");
   const fs::file_status st = fs::status(file, ec);
   if (ec && ec != std::errc::no_such_file_or_directory)
     throw InputError(file.string() + ": cannot read the experiment file: " + ec.message());
@@ -294,14 +302,16 @@ Layered parse_file(const fs::path& file, int depth) {
     fail_at(*inc, "include must be a path or a list of paths");
   }
   Layered merged;
+  chain.push_back(canonical);
   for (const auto& rel : includes) {
     fs::path p = fs::path(rel).is_absolute() ? fs::path(rel) : file.parent_path() / rel;
     try {
-      layer(merged, parse_file(p, depth + 1));
+      layer(merged, parse_file(p, chain));
     } catch (const InputError& e) {
       throw InputError(std::string(e.what()) + " (included from " + location(*inc) + ")");
     }
   }
+  chain.pop_back();
   t.erase("include");
   KeyOrigins origins = own_origins(t);
   layer(merged, Layered{std::move(t), std::move(origins)});
@@ -528,7 +538,8 @@ void put_config(toml::table& out, const Config& cfg, const ParamSpec* specs, std
 Document Document::read(const fs::path& file) {
   Document d;
   d.impl->file = fs::absolute(file);
-  Layered l = parse_file(d.impl->file, 0);
+  std::vector<fs::path> chain;
+  Layered l = parse_file(d.impl->file, chain);
   d.impl->root = std::move(l.root);
   d.impl->origins = std::move(l.origins);
   return d;
@@ -688,6 +699,11 @@ Experiment resolve(const Document& doc, const Registry& registry) {
   if (has_control_character(s.name))
     throw InputError(e.where("name") + ": experiment.name contains a control character (" + printable(s.name) +
                      "); it names the run directory");
+  // A directory name has at most 255 bytes (NAME_MAX): said here, not by a failed mkdir that
+  // prints the whole name.
+  if (s.name.size() > 255)
+    throw InputError(e.where("name") + ": experiment.name is " + std::to_string(s.name.size()) +
+                     " bytes long; it names the run directory, and a directory name has at most 255");
   s.seed = static_cast<std::uint64_t>(e.get_int("seed"));
   s.loops = static_cast<int>(e.get_int("loops"));
   s.iterations = static_cast<int>(e.get_int("iterations"));

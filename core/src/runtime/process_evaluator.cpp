@@ -83,7 +83,9 @@ ProcessEvaluator::ProcessEvaluator(const Environment& env, const Descriptor& des
   const std::size_t records_bytes = round_up(capacity_ * width_ * sizeof(double));
   map_bytes_ = ctl_bytes + params_bytes + seeds_bytes + records_bytes;
   map_ = ::mmap(nullptr, map_bytes_, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
-  if (map_ == MAP_FAILED) throw SystemError("cannot map " + std::to_string(map_bytes_) + " bytes of shared memory");
+  if (map_ == MAP_FAILED)
+    throw SystemError("cannot map " + std::to_string(map_bytes_) +
+                      " bytes of shared memory for the worker processes: " + std::strerror(errno));
   auto* base = static_cast<char*>(map_);
   ctl_ = new (base) Control;
   params_ = reinterpret_cast<double*>(base + ctl_bytes);

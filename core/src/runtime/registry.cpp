@@ -40,6 +40,23 @@ bool looks_like_plugin_file(const fs::path& p) {
   return name.rfind("qd_", 0) == 0 && p.extension() == ".so";
 }
 
+// Why a directory entry named like a plugin is no file to load (`status_error`: what following it
+// reported).
+std::string not_a_library(const fs::path& path, const std::error_code& status_error) {
+  std::error_code ec;
+  const fs::file_status own = fs::symlink_status(path, ec);
+  if (fs::is_symlink(own)) {
+    if (status_error == std::errc::too_many_symbolic_link_levels) return "a symbolic link loop, not a shared library";
+    if (status_error) return "a symbolic link to nothing (" + status_error.message() + "), not a shared library";
+  }
+  const fs::file_status st = fs::status(path, ec);
+  if (fs::is_directory(st)) return "a directory, not a shared library";
+  if (fs::is_fifo(st)) return "a FIFO, not a shared library";
+  if (fs::is_character_file(st) || fs::is_block_file(st)) return "a device, not a shared library";
+  if (fs::is_socket(st)) return "a socket, not a shared library";
+  return "not a regular file, so not a shared library";
+}
+
 // What is wrong with a file that should be an ELF shared library, judged from its first bytes; empty
 // when it looks like one. Checked here because Boost's ELF reader reports a text file as
 // "basic_ios::clear: iostream error".
@@ -162,6 +179,13 @@ Opened open_checked(const fs::path& path, Rejection& seen) {
     } else if (const char* text = ::dlerror()) {
       reason = dlopen_reason(where, text);
     }
+    // No descriptor or memory left to map it (ulimit -n, ulimit -v): the system's failure, not the
+    // library's (exit 4), and never a silent "unknown component" for every library.
+    for (const int shortage : {EMFILE, ENFILE, ENOMEM})
+      if (reason.find(std::strerror(shortage)) != std::string::npos)
+        throw SystemError(where + ": cannot be loaded: " + reason);
+    if (reason.find("failed to map segment") != std::string::npos)
+      throw SystemError(where + ": cannot be loaded: " + reason + " (too little address space: ulimit -v?)");
     throw PluginError(where + ": cannot be loaded: " + reason);
   }
   // The entry symbol is an alias: a variable holding the entry function's address. It is read as
@@ -362,6 +386,9 @@ std::shared_ptr<ProbeCopy> read_declarations(MessageReader& in) {
   Rejection seen;
   try {
     message = describe_declarations(*open_checked(path, seen).info);
+  } catch (const SystemError& e) {
+    message = "S";  // the system refused what loading it needs: qdrun's failure, not the library's
+    put_text(message, e.what());
   } catch (const std::exception& e) {
     message = "E";
     put_text(message, e.what());
@@ -469,14 +496,17 @@ std::shared_ptr<ProbeCopy> verdict(const Probe& p, Rejection& seen) {
       if (!in.done()) throw std::runtime_error("trailing bytes");
       return copy;
     }
-    if (kind != 'E') throw std::runtime_error("unknown message");
     std::deque<std::string> keep;
+    if (kind == 'S') throw SystemError(in.text(keep));
+    if (kind != 'E') throw std::runtime_error("unknown message");
     const std::string reason = in.text(keep);
     seen.names_known = in.number<char>() != 0;
     const auto n = in.number<std::uint32_t>();
     for (std::uint32_t i = 0; i < n; ++i) seen.names.emplace_back(in.text(keep));
     throw PluginError(reason);
   } catch (const PluginError&) {
+    throw;
+  } catch (const SystemError&) {
     throw;
   } catch (const std::exception& e) {
     throw PluginError(where + ": its probe returned a damaged description (" + e.what() + ")");
@@ -491,8 +521,21 @@ void Registry::discover() {
     std::error_code ec;
     if (!fs::is_directory(dir, ec)) continue;
     std::vector<fs::path> files;
-    for (const auto& e : fs::directory_iterator(dir, ec))
-      if (e.is_regular_file(ec) && looks_like_plugin_file(e.path())) files.push_back(e.path());
+    for (const auto& e : fs::directory_iterator(dir, ec)) {
+      if (!looks_like_plugin_file(e.path())) continue;
+      std::error_code ec2;
+      if (e.is_regular_file(ec2)) {
+        files.push_back(e.path());
+        continue;
+      }
+      // Named like a plugin but no library (a dangling symlink left by a removed build, a
+      // directory, a FIFO): left out, and --list says why.
+      Rejection r;
+      r.path = e.path().string();
+      r.reason = r.path + ": " + not_a_library(e.path(), ec2);
+      if (std::none_of(rejected_.begin(), rejected_.end(), [&](const Rejection& x) { return x.path == r.path; }))
+        rejected_.push_back(std::move(r));
+    }
     std::sort(files.begin(), files.end());
     for (const auto& f : files) {
       const auto same = [&](const fs::path& p) {
@@ -534,6 +577,12 @@ void Registry::discover() {
     running.pop_front();
   }
   for (std::size_t i = 0; i < candidates.size(); ++i) {
+    // A probe the system refused descriptors or memory may have competed with the others (each
+    // holds a pipe): alone, now, it is asked once more before that is the verdict.
+    if (errors[i].empty() && !probes[i].message.empty() && probes[i].message[0] == 'S') {
+      probes[i] = start_probe(candidates[i]);
+      finish_probe(probes[i]);
+    }
     try {
       if (!errors[i].empty()) throw PluginError(errors[i]);
       std::shared_ptr<ProbeCopy> copy = verdict(probes[i], seen[i]);

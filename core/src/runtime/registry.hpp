@@ -75,7 +75,10 @@ class Registry {
   // its own (forked): a library whose constructors or entry function crash, hang or call exit()
   // ends only that process. Libraries that fail a check are recorded in rejected() instead of
   // throwing, so one stale or hostile file does not block unrelated experiments, --list included.
-  // Nothing is loaded into this process until a component is constructed (create()).
+  // Nothing is loaded into this process until a component is constructed (create()). Entries
+  // named like plugins that are no regular files (a dangling symlink, a FIFO) are recorded too.
+  // Throws qd::SystemError when the system refuses what loading needs (no process, descriptor or
+  // address space left): that is no verdict on the library.
   void discover();
 
   // Loads one library into this process at once and registers its components. Throws

@@ -58,9 +58,6 @@ class RunDirectory {
   // What `dir` holds besides a checkpoint; `found` gets a description of the results (for the
   // messages: "metrics.csv holds loops up to 3, archive.csv").
   static Leftover leftover(const std::filesystem::path& dir, std::string* found = nullptr);
-  // Removes what a run that stopped before its first checkpoint wrote, and nothing else (a
-  // user's notes stay).
-  static void remove_unfinished_start(const std::filesystem::path& dir);
   // The text of `dir`/status ("" when there is none); InputError when it is not a regular file.
   static std::string read_status(const std::filesystem::path& dir);
 
@@ -88,6 +85,9 @@ class RunDirectory {
 
  private:
   void check_writable() const;
+  // Removes what a run that stopped before its first checkpoint wrote, and nothing else (a
+  // user's notes stay). Only under this directory's lock: another qdrun's files are not ours.
+  static void remove_unfinished_start(const std::filesystem::path& dir);
 
   std::filesystem::path dir_;
   AppendLog metrics_, training_;
