@@ -6,8 +6,11 @@ and algorithm (from each run's config.toml) and writes, as PNG and SVG:
   coverage-<env>            coverage (% of all cells) against evaluations: median and 25-75 % band
                             over seeds, one line per algorithm, markers at loop boundaries; the
                             mixing ratio below
+  qd-<env>                  for tasks with a fitness: QD score, max and mean fitness against
+                            evaluations, median and 25-75 % band over seeds
   map-<env>-<alg>           the archive's occupied cells, laid out from the run's grid.toml (any
-                            descriptor), dimension 0 to the right
+                            descriptor), dimension 0 to the right; a 2-D CVT archive as its
+                            Voronoi cells
   map-<env>-<alg>-fitness   the elites' fitness on the same grid, when it varies (--color)
   traces-<env>-<alg>        every elite's trajectory (its trace's main columns), from qdrun --replay
   latents-<env>-<alg>       the dataset in the representation's latent space, from qdrun --latents

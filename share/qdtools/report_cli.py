@@ -32,7 +32,7 @@ from .qdrun import find_qdrun, version
 from .report import sections, study, summary, sweep
 from .report.commands import Shown
 
-FILE_KINDS = "coverage,maps,losses"  # the figures a directory's files alone give (no qdrun)
+FILE_KINDS = "coverage,qd,maps,losses"  # the figures a directory's files alone give (no qdrun)
 
 
 def parser():
@@ -41,9 +41,11 @@ def parser():
                                  epilog=__doc__.split("\n\n", 2)[2], formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--environments", default="striker,bipedal-kicker",
                     help="comma list of the environment variants of the experiment directory (its subdirectories: "
-                         "striker, bipedal-walker, bipedal-kicker and their -mix-scale versions; default: "
-                         "striker,bipedal-kicker)")
-    ap.add_argument("--algorithms", default=",".join(algs.experiments), help="comma list (default: all 8)")
+                         "striker, bipedal-walker, bipedal-kicker and their -mix-scale versions, or another directory "
+                         "there such as lp-sphere with --algorithms naming its files; default: striker,bipedal-kicker)")
+    ap.add_argument("--algorithms", default=",".join(algs.experiments),
+                    help="comma list of experiment file stems: the paper's 8 (the default), or any file every chosen "
+                         "environment's directory has (cma-me for experiments/lp-sphere, say)")
     ap.add_argument("--seeds", default="100,200,300", help="seed list, as qdrun --seeds (default: 100,200,300)")
     ap.add_argument("--evaluations", type=int, help="budget per run (qdrun --evaluations; default: the files' own, "
                     "the paper's: 1 002 000 for the Striker, 2 002 000 for Walker and Kicker; CPU-days)")
@@ -119,12 +121,14 @@ def run(argv=None):
     known_envs = tables.experiment_variants(exp_dir)
     envs = [e for e in args.environments.split(",") if e]
     algs = [a for a in args.algorithms.split(",") if a]
-    for e in envs:
-        if e not in known_envs:
-            ap.error(f"unknown environment '{e}' (known: {', '.join(known_envs)})")
-    for a in algs:
-        if a not in tables.algorithms().experiments:
-            ap.error(f"unknown algorithm '{a}' (known: {', '.join(tables.algorithms().experiments)})")
+    for e in envs:  # the paper's variants, or any directory of the set (a benchmark's: lp-sphere)
+        if e not in known_envs and not (exp_dir / e).is_dir():
+            ap.error(f"unknown environment '{e}' (known: {', '.join(known_envs)}, or a directory of {exp_dir})")
+    for a in algs:  # the paper's algorithms, or any experiment file that every chosen environment has
+        missing = [e for e in envs if not (exp_dir / e / f"{a}.toml").exists()]
+        if missing and a not in tables.algorithms().experiments:
+            ap.error(f"unknown algorithm '{a}': no {a}.toml in {', '.join(str(exp_dir / e) for e in missing)} "
+                     f"(the paper's: {', '.join(tables.algorithms().experiments)})")
     if args.evaluations is not None and args.loops is not None:
         ap.error("--evaluations and --loops conflict")
     if args.dry_run and args.no_run:
@@ -149,7 +153,7 @@ def run(argv=None):
     record = study.read(out) or {}
     header = dict(study.this_machine(), qdrun=version(qdrun), sweep=sweep_line, command=shown(sys.argv),
                   commands_from=shown.origin(), notes=args.note)
-    for hand in ("preface",):  # written by hand into study.toml: kept
+    for hand in ("title", "preface"):  # written by hand into study.toml: kept
         if record.get("header", {}).get(hand):
             header[hand] = record["header"][hand]
     selection = {"environments": envs, "algorithms": algs, "seeds": args.seeds, "evaluations": args.evaluations,

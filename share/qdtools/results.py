@@ -2,12 +2,13 @@
 nothing bulky (results/README.md states the rule).
 
 A study keeps, per run, what a reader needs to check a claim: config.toml, provenance.toml,
-grid.toml, status, training.csv (and pca.csv), metrics.csv as metrics.csv.gz (a CVT's centroids.csv
-as centroids.csv.gz), and the final archive without its parameters as archive.csv.gz (index,
-objective, measures_*, recn_error). Never the
-per-epoch losses, the parameters, checkpoints, datasets or snapshots."""
+grid.toml, status, training.csv (and pca.csv), metrics.csv as metrics.csv.gz, and the final
+archive without its parameters as archive.csv.gz (index, objective, measures_*, recn_error) with,
+for a CVT, centroids.csv as centroids.csv.gz. Never the per-epoch losses, the parameters,
+checkpoints, datasets or snapshots."""
 import gzip
 import json
+import math
 import os
 import re
 import shutil
@@ -16,10 +17,10 @@ from pathlib import Path
 
 from .figures.output import MANIFEST, compact_png, read_manifest
 from .report import study, summary
-from .runs import Run, csv_header, is_run_dir, open_text
+from .runs import Run, csv_header, group, is_run_dir, median_run, open_text
 
 KEEP = ("config.toml", "provenance.toml", "grid.toml", "status", "training.csv", "pca.csv", "summary.toml")
-COMPRESS = ("metrics.csv", "centroids.csv")
+COMPRESS = ("metrics.csv",)  # and centroids.csv beside a kept archive (slim_run)
 # Figures a study's files cannot give again (they need parameters, checkpoints or per-epoch logs):
 # copied as drawn. Coverage and maps are drawn again from the kept files (qdreport --regenerate).
 KEPT_FIGURES = ("traces", "latents", "losses")
@@ -34,7 +35,7 @@ BULKY = [
     (re.compile(r"(^|/)figures/data/"), "replayed trajectories or latent codes (qdplot's data/)"),
     (re.compile(r"(^|/)(lock|qdrun\.log|sweep\.log)$"), "a run's lock or log"),
 ]
-BUDGET_RESULTS = 10 * 1000 * 1000   # bytes tracked under results/
+BUDGET_RESULTS = 15 * 1000 * 1000   # bytes tracked under results/ (10 MB until the lp benchmark, 13 MB until issue 36)
 BUDGET_SOURCE = 4 * 1000 * 1000     # bytes tracked outside results/
 LARGEST_PLAIN = 64 * 1000           # a larger text file under results/ is stored gzip-compressed
 
@@ -117,29 +118,56 @@ def machine_paths(text, replacements):
     return text
 
 
-def slim_run(src, dst, replacements=()):
+def every_kth_row(k):
+    """metrics.csv's lines, keeping the header, every row whose iteration + 1 is a multiple of k and
+    every loop's last row (so loop ends, where the figures mark loops, stay exact)."""
+    def lines(f):
+        yield f.readline()
+        rows = [line for line in f if line.strip()]
+        for i, line in enumerate(rows):
+            loop, iteration = line.split(",", 2)[:2]
+            last = i + 1 == len(rows) or rows[i + 1].split(",", 1)[0] != loop
+            if last or (int(iteration) + 1) % k == 0:
+                yield line
+    return lines
+
+
+def slim_run(src, dst, replacements=(), rows=None, archive=True):
     """Copies what a study keeps of the run directory src to dst, with summary.toml holding the
-    quantities the report needs from files the study does not keep (report/summary.py, KEPT)."""
+    quantities the report needs from files the study does not keep (report/summary.py, KEPT).
+    `rows`: a metrics.csv of more rows keeps every k-th (the fewest k that leaves at most `rows`)
+    and each loop's last; the full run's mixing ratio over its last loop is then kept in
+    summary.toml. `archive`: whether to keep the final archive (and a CVT archive's centroids)."""
     dst.mkdir(parents=True, exist_ok=True)
-    values = summary.kept(Run(src)) if summary.KEPT else {}
+    run = Run(src)
+    values = summary.kept(run) if summary.KEPT else {}
+    k = math.ceil(len(run.metrics) / rows) if rows and len(run.metrics) > rows else 1
+    if k > 1:  # quantities of every row, before the copy keeps fewer
+        values.update(summary.mixing_last_loop(run), metrics_rows_of_the_full_run=len(run.metrics),
+                      metrics_rows_kept=f"every {k}th iteration and every loop's last")
+        values = {key: v for key, v in values.items() if not (isinstance(v, float) and math.isnan(v))}
     if values:
         (dst / summary.SUMMARY).write_text("# From the full run, which kept files this copy does not "
                                             "(report/summary.py, KEPT)\n" +
-                                            "".join(f"{k} = {study.toml_value(v)}\n" for k, v in values.items()))
+                                            "".join(f"{key} = {study.toml_value(v)}\n" for key, v in values.items()))
     for name in KEEP:
         if (src / name).exists():
             text = (src / name).read_text()
             (dst / name).write_text(machine_paths(text, replacements) if name.endswith(".toml") else text)
     for name in COMPRESS:
         if (src / name).exists():
-            gzip_copy(src / name, dst / f"{name}.gz")
-    if (src / "archive.csv").exists():
+            gzip_copy(src / name, dst / f"{name}.gz", every_kth_row(k) if name == "metrics.csv" and k > 1 else None)
+    if archive and (src / "archive.csv").exists():
         gzip_copy(src / "archive.csv", dst / "archive.csv.gz", without_parameters)
+        if (src / "centroids.csv").exists():  # a CVT archive's cells: its map needs them
+            gzip_copy(src / "centroids.csv", dst / "centroids.csv.gz")
 
 
-def publish(report_dir, study_dir):
+def publish(report_dir, study_dir, rows=None, archives="all"):
     """Copies a qdreport directory into a study: the report's records, every run slimmed, the
-    figures the kept files cannot give again (compact). The caller regenerates the report there."""
+    figures the kept files cannot give again (compact). The caller regenerates the report there.
+    `rows`: thin long metrics.csv files (slim_run). `archives`: "all" keeps every run's final
+    archive, "maps" only those of the runs the maps draw (each group's median run)."""
     report_dir, study_dir = Path(report_dir), Path(study_dir)
     if (study_dir / "runs").exists():
         raise FileExistsError(f"{study_dir} already holds a study")
@@ -149,8 +177,13 @@ def publish(report_dir, study_dir):
             shutil.copy2(report_dir / name, study_dir / name)
     replacements = [(str(report_dir.resolve()), "REPORT_DIR"), (str(Path.home()), "~")]
     runs = sorted(p.parent for p in (report_dir / "runs").rglob("config.toml") if is_run_dir(p.parent))
+    drawn = None
+    if archives == "maps":
+        groups = group([Run(p) for p in runs])
+        drawn = {median_run(rs).path for algs in groups.values() for rs in algs.values()}
     for run in runs:
-        slim_run(run, study_dir / "runs" / run.relative_to(report_dir / "runs"), replacements)
+        slim_run(run, study_dir / "runs" / run.relative_to(report_dir / "runs"), replacements, rows,
+                 archive=drawn is None or run in drawn)
     figures = study_dir / "figures"
     figures.mkdir(exist_ok=True)
     kept = []

@@ -97,6 +97,10 @@ class Grid:
     def is_cvt(self):
         return self.kind == "cvt"
 
+    @property
+    def dimensions(self):
+        return len(self.names)
+
     def unravel(self, cells):
         """Per dimension, the bin of every cell index (a grid's, not a CVT's)."""
         import numpy as np
@@ -139,13 +143,16 @@ def read_grid(run_dir):
 
 def read_centroids(grid_path, g, names):
     """A CVT's centroids (centroids.csv or .gz beside grid.toml: `centroid,<name>...`, one row per
-    cell in order) as a cells x dimensions array."""
+    cell in order) as a cells x dimensions array; None for a study's copy of a run that keeps
+    neither the archive nor the centroids (share/qdresults --archives maps)."""
     import numpy as np
     path = grid_path.parent / g.get("centroids", "centroids.csv")
     try:
         header = csv_header(path)
         rows = read_csv(path)
     except FileNotFoundError as e:
+        if locate(grid_path.parent / "archive.csv") is None:
+            return None
         raise ToolError(f"{grid_path}: a CVT grid whose centroids ({path.name}) are missing") from e
     if header != ["centroid"] + names or [r["centroid"] for r in rows] != list(range(g["cells"])):
         raise ToolError(f"{path}: not the {g['cells']} centroids of grid.toml's {', '.join(names)} "
@@ -228,6 +235,10 @@ class Run:
         if path:
             return Path(path).stem
         return self.config["experiment"].get("name") or f"{self.representation}/{self.mutator}"
+
+    def has_fitness(self):
+        """Whether the run's task has a fitness: its QD metrics (metrics.csv's qd_score) are numbers."""
+        return any(isinstance(m.get("qd_score"), float) and not math.isnan(m["qd_score"]) for m in self.metrics)
 
     @property
     def complete(self):

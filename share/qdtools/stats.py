@@ -27,13 +27,20 @@ def nearest_percentile(ys, q):
 def coverage_series(runs):
     """The evaluation counts of every run's rows (union, sorted) and each run's coverage in percent
     of its cells there: the coverage after the last row at or before x, NaN past the run's end."""
+    return series(runs, lambda r, m: 100.0 * m["elites"] / r.cells)
+
+
+def series(runs, value, before=0.0):
+    """The evaluation counts of every run's rows (union, sorted) and each run's `value(run, row)`
+    there: the value of the last row at or before x (`before` before the first), NaN past the run's
+    end."""
     x = np.array(sorted({m["evaluations"] for r in runs for m in r.metrics}))
     ys = []
     for r in runs:
         ev = np.array([m["evaluations"] for m in r.metrics])
-        pc = np.array([100.0 * m["elites"] / r.cells for m in r.metrics])
+        v = np.array([value(r, m) for m in r.metrics], dtype=float)
         idx = np.searchsorted(ev, x, side="right") - 1
-        y = np.where(idx >= 0, pc[np.clip(idx, 0, None)], 0.0)
+        y = np.where(idx >= 0, v[np.clip(idx, 0, None)], before)
         y[x > ev[-1]] = np.nan
         ys.append(y)
     return x, np.array(ys)

@@ -11,12 +11,14 @@ sys.dont_write_bytecode = True  # nothing written into the source tree
 
 def write_run(root, name="my-env-decaying", seed=1, env="point-mass", rep="none", mutator="decaying-iso",
               descriptor="point-xy", metrics=None, grid=None, archive=None, experiment_file=None, extra_env="",
-              batch=10, status="complete", centroids=None):
+              batch=10, status="complete", centroids=None, qd=None):
     """A run directory <root>/<name>/seed-<seed>/ with config.toml, provenance.toml, metrics.csv (the
-    columns qdrun writes; no fitness, so the QD metrics empty) and, when given, grid.toml and
+    columns qdrun writes; the QD metrics empty unless `qd` is given) and, when given, grid.toml and
     archive.csv. `metrics`: rows (loop, evaluations, elites[, mixing_ratio]); `grid`: (shape, names,
-    lower, upper[, labels]); `centroids`: (names, rows of coordinates), a CVT's grid.toml and
-    centroids.csv instead; `archive`: rows (index, objective, measures...)."""
+    lower, upper[, labels]); `centroids`: (names, rows of coordinates[, lower, upper]), a CVT's
+    grid.toml (bounds: the given, else the centroids' own) and centroids.csv instead; `archive`:
+    rows (index, objective, measures...); `qd`: per metrics row (qd_score, max_fitness,
+    mean_fitness), a task with fitness."""
     d = Path(root) / name / f"seed-{seed}"
     d.mkdir(parents=True)
     (d / "config.toml").write_text(
@@ -39,10 +41,10 @@ def write_run(root, name="my-env-decaying", seed=1, env="point-mass", rep="none"
             text += f"labels = {grid[4]}\n"
         (d / "grid.toml").write_text(text.replace("'", '"'))
     if centroids:
-        names, points = centroids
+        names, points = centroids[:2]
         cells = len(points)
-        lower = [min(p[k] for p in points) for k in range(len(names))]
-        upper = [max(p[k] for p in points) for k in range(len(names))]
+        lower = list(centroids[2]) if len(centroids) > 2 else [min(p[k] for p in points) for k in range(len(names))]
+        upper = list(centroids[3]) if len(centroids) > 3 else [max(p[k] for p in points) for k in range(len(names))]
         (d / "grid.toml").write_text((f'kind = "cvt"\ncells = {cells}\nshape = [{cells}]\nnames = {list(names)}\n'
                                       f'lower = {lower}\nupper = {upper}\ncentroids = "centroids.csv"\n'
                                       'centroids_crc32c = "00000000"\n').replace("'", '"'))
@@ -50,10 +52,13 @@ def write_run(root, name="my-env-decaying", seed=1, env="point-mass", rep="none"
             ",".join(map(str, [c] + list(p))) + "\n" for c, p in enumerate(points)))
     lines = ["loop,iteration,evaluations,elites,coverage,qd_score,max_fitness,mean_fitness,mixing_ratio,added,replaced,"
              "invalid,wall_seconds,train_seconds"]
+    iteration = {}
     for i, r in enumerate(rows):
         loop, ev, el = r[:3]
         ratio = r[3] if len(r) > 3 else ""
-        lines.append(f"{loop},{i},{ev},{el},{el / cells},,,,{ratio},0,0,0,{0.1 * (i + 1)},0")
+        q = ",".join(map(str, qd[i])) if qd else ",,"
+        it = iteration[loop] = iteration.get(loop, -1) + 1  # the iteration within its loop, as qdrun counts
+        lines.append(f"{loop},{it},{ev},{el},{el / cells},{q},{ratio},0,0,0,{0.1 * (i + 1)},0")
     (d / "metrics.csv").write_text("\n".join(lines) + "\n")
     if archive is not None:
         dims = len(archive[0]) - 2 if archive else 2

@@ -1,17 +1,21 @@
 """qdplot's figures for a task the tools know nothing of (an environment of one's own): maps with
 dimension 0 to the right and square cells, a fitness map when fitness varies, and every figure
-with labelled axes, labelled ticks and a legend or colour bar."""
+with labelled axes, labelled ticks and a legend or colour bar; the QD metrics' curves (their
+numbers parsed back from the figure's data) and a CVT archive's Voronoi map (its pixels checked
+against a brute-force nearest centroid)."""
 import contextlib
 import io
 import json
+import math
 import unittest
 
 import fixtures
-
+import matplotlib
 import numpy as np
+from PIL import Image
 
 from qdtools import plot_cli, runs
-from qdtools.figures import latents
+from qdtools.figures import latents, voronoi
 
 GRID = ([4, 3], ["x", "y"], [0.0, 0.0], [2.0, 1.5])  # cells of 0.5 x 0.5: square
 
@@ -62,15 +66,17 @@ class Figures(unittest.TestCase):
         self.assertIn("no fitness map", said)
         self.assertIn("every elite has the same fitness", said)
 
-    def test_a_cvt_archive_gets_coverage_and_a_message_for_its_map(self):
+    def test_a_cvt_archive_gets_coverage_and_voronoi_maps(self):
         root = fixtures.tmpdir(self)
         run = fixtures.write_run(root / "runs", centroids=(["x", "y"], [(0.0, 0.0), (1.0, 0.5), (0.5, 1.0)]),
                                  archive=[(0, 1.0, 0.1, 0.1), (2, 2.0, 0.6, 0.9)], rep="autoencoder", mutator="poms",
                                  metrics=[(0, 10, 1), (1, 20, 2)])
         with contextlib.redirect_stdout(io.StringIO()) as said:
             plot_cli.plot([root / "runs"], root / "figures", ["coverage", "maps"], formats=("png",), dump=True)
-        self.assertEqual(sorted(p.name for p in (root / "figures").glob("*.png")), ["coverage-point-mass.png"])
-        self.assertIn(f"no map for {run}: its archive is a CVT (grid.toml kind = \"cvt\", 3 centroids)", said.getvalue())
+        self.assertEqual(sorted(p.name for p in (root / "figures").glob("*.png")),
+                         ["coverage-point-mass.png", "map-point-mass-poms-cvt-fitness.png", "map-point-mass-poms-cvt.png"])
+        self.assertEqual(dump(root / "figures", "map-point-mass-poms-cvt")["kind"], "cvt")
+        self.assertNotIn("no map", said.getvalue())
         cov = dump(root / "figures", "coverage-point-mass")["figure"]
         self.assertTrue(any(t == "PoMS CVT (1 seed): 2 cells, 66.67 %" for t in cov["legends"]), cov)
         # Latent codes are coloured by the coordinates of their cell's centroid.
@@ -120,6 +126,93 @@ class Figures(unittest.TestCase):
             self.assertGreaterEqual(fig["axes"][0]["yticks"], 3, (low, high, fig))
             self.assertEqual(fig["legends"], ["train loss (solid)", "test loss (dashed)"])
             self.assertEqual(fig["colorbars"], ["loop"])
+
+
+QD_ROWS = [(0, 20, 5), (1, 30, 8), (1, 40, 9), (2, 50, 12)]
+
+
+def qd_runs(root, per_seed):
+    """Runs of one task with fitness, seeds 1.. with the given QD scores per row (max and mean fitness
+    derived from them)."""
+    for seed, scores in enumerate(per_seed, 1):
+        fixtures.write_run(root / "runs", seed=seed, experiment_file="/x/decaying-iso.toml", metrics=QD_ROWS,
+                           qd=[(q, q / 10 + 1, q / 20) for q in scores])
+
+
+class QdFigure(unittest.TestCase):
+    def test_qd_curves_are_the_seeds_median_and_quartiles(self):
+        root = fixtures.tmpdir(self)
+        qd_runs(root, [[10, 20, 25, 40], [12, 18, 30, 44], [11, 22, 21, 38]])
+        with contextlib.redirect_stdout(io.StringIO()):
+            plot_cli.plot([root / "runs"], root / "figures", ["qd"], formats=("png",), dump=True)
+        qd = dump(root / "figures", "qd-point-mass")
+        curve = qd["algorithms"]["decaying-iso"]
+        self.assertEqual(curve["seeds"], [1, 2, 3])
+        self.assertEqual(curve["qd_score"]["evaluations"], [20, 30, 40, 50])
+        self.assertEqual(curve["qd_score"]["median"], [11, 20, 25, 40])   # the middle of 3 seeds at each row
+        self.assertEqual(curve["qd_score"]["q25"], [10, 18, 21, 38])
+        self.assertEqual(curve["qd_score"]["q75"], [12, 22, 30, 44])
+        self.assertEqual(curve["max_fitness"]["median"], [2.1, 3.0, 3.5, 5.0])
+        self.assertEqual(curve["mean_fitness"]["final_median"], 2.0)
+        self.assertEqual(curve["loop_end_evaluations"], [20, 40, 50])
+        fig = qd["figure"]
+        self.assertIn("decaying-iso (3 seeds): QD score 40, max fitness 5, mean 2", fig["legends"])
+        self.assertEqual([a["ylabel"] for a in fig["axes"]],
+                         ["QD score\n(sum of fitness - bound)", "max fitness", "mean fitness"])
+        self.assertEqual(fig["axes"][-1]["xlabel"], "evaluations")
+
+    def test_no_qd_figure_for_a_task_without_fitness(self):
+        figures, said = plot(self, [(7, 1.0, 1.2, 0.7)], kinds="qd")
+        self.assertFalse((figures / "qd-point-mass.png").exists())
+        self.assertIn("no QD figure for point-mass: its task has no fitness", said)
+
+
+# A CVT archive of 7 cells over [0, 4] x [0, 2]; cells 1, 3, 4 and 6 hold elites.
+CENTROIDS = [(0.3, 0.4), (1.1, 1.6), (1.9, 0.7), (2.6, 1.5), (3.3, 0.3), (3.6, 1.7), (2.2, 1.9)]
+CVT_ARCHIVE = [(1, 3.0, 1.0, 1.5), (3, 5.0, 2.5, 1.4), (4, 1.0, 3.2, 0.4), (6, 4.0, 2.1, 1.8)]
+
+
+class VoronoiMap(unittest.TestCase):
+    def test_nearest_centroid_is_the_brute_force_one(self):
+        rng = np.random.default_rng(5)
+        centroids = rng.uniform(-1, 3, size=(300, 2))
+        points = rng.uniform(-1.5, 3.5, size=(5000, 2))
+        brute = np.argmin(((points[:, None, :] - centroids[None]) ** 2).sum(axis=2), axis=1)
+        tiles = (np.floor(points[:, 0] * 3).astype(int) + 10) * 100 + np.floor(points[:, 1] * 3).astype(int) + 10
+        np.testing.assert_array_equal(voronoi.nearest_centroid(points, centroids, tiles), brute)
+        np.testing.assert_array_equal(voronoi.nearest_centroid(points, centroids), brute)
+
+    def test_every_cell_has_the_colour_of_its_elite(self):
+        root = fixtures.tmpdir(self)
+        fixtures.write_run(root / "runs", mutator="iso", archive=CVT_ARCHIVE,
+                           centroids=(["x", "y"], CENTROIDS, [0.0, 0.0], [4.0, 2.0]))
+        with contextlib.redirect_stdout(io.StringIO()):
+            plot_cli.plot([root / "runs"], root / "figures", ["maps"], formats=("png",), dump=True)
+        centroids = np.array(CENTROIDS)
+        fitness = {c: f for c, f, *_ in CVT_ARCHIVE}
+        viridis = matplotlib.colormaps["viridis"]
+        for stem, colour in (("map-point-mass-mape-iso-cvt", lambda c: matplotlib.colors.to_rgb("tab:blue")),
+                             ("map-point-mass-mape-iso-cvt-fitness", lambda c: viridis((fitness[c] - 1.0) / 4.0)[:3])):
+            m = dump(root / "figures", stem)
+            self.assertEqual((m["kind"], m["elites"], m["cells"]), ("cvt", 4, 7))
+            self.assertEqual(m["figure"]["axes"][0]["xlabel"], "x ([0, 4])")
+            image = np.asarray(Image.open(root / "figures" / f"{stem}.png").convert("RGB"), dtype=float) / 255
+            x0, y0, x1, y1 = m["axes"][0]["bbox"]
+            self.assertAlmostEqual((x1 - x0) / (y1 - y0), 2.0, delta=0.02)  # to scale: [0, 4] x [0, 2]
+            checked = 0
+            for px in np.arange(math.ceil(x0) + 2, int(x1) - 2, 3):
+                for py in np.arange(math.ceil(y0) + 2, int(y1) - 2, 3):
+                    point = np.array([(px + 0.5 - x0) / (x1 - x0) * 4, (py + 0.5 - y0) / (y1 - y0) * 2])
+                    d = np.sqrt(((centroids - point) ** 2).sum(axis=1))
+                    first, second = np.sort(d)[:2]
+                    if second - first < 3 * 4 / (x1 - x0):  # within a few pixels of a border
+                        continue
+                    cell = int(np.argmin(d))
+                    want = colour(cell) if cell in fitness else (1.0, 1.0, 1.0)
+                    got = image[image.shape[0] - 1 - py, px]
+                    np.testing.assert_allclose(got, want, atol=2 / 255, err_msg=f"{stem} pixel {px},{py} cell {cell}")
+                    checked += 1
+            self.assertGreater(checked, 2000)
 
 
 if __name__ == "__main__":

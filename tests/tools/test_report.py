@@ -29,16 +29,21 @@ def make_study(out, elites):
                       "addendum": [{"after": "## striker", "text": "Added under striker.\n"}]})
 
 
+def regenerate(out):
+    """qdreport --regenerate OUT (as run from the repository); REPORT.md's text."""
+    argv, sys.argv = sys.argv, ["share/qdreport"]
+    try:
+        report_cli.regenerate(out)
+    finally:
+        sys.argv = argv
+    return (out / "REPORT.md").read_text()
+
+
 class Regenerate(unittest.TestCase):
     def test_tables_from_the_files_alone(self):
         out = fixtures.tmpdir(self) / "study"
         make_study(out, {("poms", 1): 30, ("poms", 2): 10, ("poms", 3): 20, ("iso", 1): 40, ("iso", 2): 50})
-        argv, sys.argv = sys.argv, ["share/qdreport"]
-        try:
-            report_cli.regenerate(out)
-        finally:
-            sys.argv = argv
-        text = (out / "REPORT.md").read_text()
+        text = regenerate(out)
         self.assertTrue(text.startswith("# PoMS reproduction report\n\n> By hand.\n\n- date: 2026-01-01 00:00 UTC\n"))
         self.assertIn("- note: a note\n", text)
         self.assertIn("on this machine with 7 hardware threads", text)
@@ -52,6 +57,28 @@ class Regenerate(unittest.TestCase):
         self.assertIn("</details>\n\nAdded under striker.\n\n## Diagnostics", body)
         self.assertTrue((out / "figures" / "coverage-striker.png").exists())
         self.assertFalse((out / "figures" / "coverage-striker.svg").exists())  # a study keeps PNGs
+        self.assertIn("\nQD metrics: no task fitness (the environment declares none", body)
+        self.assertFalse((out / "figures" / "qd-striker.png").exists())
+
+    def test_qd_metrics_of_a_task_with_fitness(self):
+        out = fixtures.tmpdir(self) / "study"
+        # (seed, final QD score) of MAP-Elites (iso) and CMA-ME, an experiment file the table does not know.
+        for alg, rep_mut, finals in (("iso", ("none", "iso"), (300.0, 100.0, 200.0)),
+                                     ("cma-me", ("none", "cma-me"), (400.0, 500.0))):
+            for seed, final in enumerate(finals, 1):
+                fixtures.write_run(out / "runs", name=f"lp-sphere-{alg}", seed=seed, env="lp-sphere", rep=rep_mut[0],
+                                   mutator=rep_mut[1], descriptor="lp-measures", experiment_file=f"/e/{alg}.toml",
+                                   metrics=[(0, 20, 5), (1, 40, 9)], qd=[(10.0, 3.0, 2.0), (final, final / 4, 2.5)])
+        study.write(out, {"selection": {"environments": ["lp-sphere"], "algorithms": ["iso", "cma-me"], "seeds": "1,2,3"},
+                          "header": {"title": "Linear projection", "date": "d", "command": "c"}})
+        text = regenerate(out)
+        self.assertTrue(text.startswith("# Linear projection\n"))
+        # Nearest-rank quartiles: of (100, 200, 300) 200 (100-300); of (400, 500) 400 (400-500).
+        self.assertIn("| MAPE-Iso | 3 | 40 | 200 (100-300) | 50.00 (25.00-75.00) | 2.50 (2.50-2.50) |", text)
+        self.assertIn("| cma-me | 2 | 40 | 400 (400-500) | 100.00 (100.00-125.00) | 2.50 (2.50-2.50) |", text)
+        self.assertIn("| cma-me | 2/2 | 40 | 9 (9-9) |", text)  # the coverage table names it as the figures do
+        self.assertIn("![QD metrics lp-sphere](figures/qd-lp-sphere.png)", text)
+        self.assertTrue((out / "figures" / "qd-lp-sphere.png").exists())
 
 
 class Parts(unittest.TestCase):

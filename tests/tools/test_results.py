@@ -90,6 +90,32 @@ class Slim(unittest.TestCase):
         results.slim_run(run, root / "again")
         self.assertEqual((root / "again" / "metrics.csv.gz").read_bytes(), first)  # reproducible bytes
 
+    def test_long_metrics_keep_every_kth_row_and_every_loop_end(self):
+        root = fixtures.tmpdir(self)
+        # Loop 0, then loops 1 and 2 of 7 iterations each: 15 rows; at most 6 rows kept -> every 3rd iteration.
+        rows = [(0, 10, 1, "")] + [(L, 10 + 10 * (7 * (L - 1) + i + 1), 2 + i, 0.1 * i) for L in (1, 2) for i in range(7)]
+        run = fixtures.write_run(root / "full", metrics=rows, archive=[(1, 0.5, 0.1, 0.2)])
+        results.slim_run(run, root / "slim", rows=6)
+        kept = runs.Run(root / "slim")
+        self.assertEqual([(m["loop"], m["iteration"]) for m in kept.metrics],
+                         [(0, 0), (1, 2), (1, 5), (1, 6), (2, 2), (2, 5), (2, 6)])
+        full, slim = summary.summarise(runs.Run(run)), summary.summarise(kept)
+        self.assertAlmostEqual(slim["mixing"], full["mixing"])  # the full last loop's mean, from summary.toml
+        self.assertAlmostEqual(full["mixing"], 0.3)
+        self.assertEqual((slim["elites"], slim["evaluations"], slim["loop_rates"]),
+                         (full["elites"], full["evaluations"], full["loop_rates"]))  # loop ends are all kept
+        self.assertEqual(runs.read_toml(root / "slim" / "summary.toml")["metrics_rows_of_the_full_run"], 15)
+
+    def test_archives_only_for_the_maps(self):
+        report = fixtures.tmpdir(self) / "report"
+        for seed, elites in ((1, 9), (2, 5), (3, 7)):  # the median final coverage: seed 3
+            fixtures.write_run(report / "runs", seed=seed, metrics=[(0, 10, 2), (1, 20, elites)],
+                               archive=[(1, 0.5, 0.1, 0.2)])
+        (report / "study.toml").write_text("[selection]\n")
+        results.publish(report, report.parent / "study", archives="maps")
+        kept = sorted(p.parent.name for p in (report.parent / "study" / "runs").rglob("archive.csv.gz"))
+        self.assertEqual(kept, ["seed-3"])
+
     def test_a_cvt_keeps_its_centroids_compressed(self):
         root = fixtures.tmpdir(self)
         run = fixtures.write_run(root / "full", centroids=(["x", "y"], [(0.0, 0.0), (1.0, 0.5)]),

@@ -62,6 +62,8 @@ class Reading(unittest.TestCase):
         (d / "centroids.csv").unlink()
         self.assertEqual(runs.read_grid(d).centroids.tolist(), [list(p) for p in points])
         (d / "centroids.csv.gz").unlink()
+        self.assertIsNone(runs.read_grid(d).centroids)  # no archive either: a study kept neither (--archives maps)
+        (d / "archive.csv").write_text("index,objective,measures_0,measures_1\n0,1.0,0.0,0.0\n")
         with self.assertRaisesRegex(ToolError, r"grid.toml: a CVT grid whose centroids \(centroids.csv\) are missing"):
             runs.read_grid(d)
         (d / "centroids.csv").write_text("centroid,x,z\n0,0,0\n1,1,1\n2,0,1\n")

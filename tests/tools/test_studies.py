@@ -24,7 +24,7 @@ class Studies(unittest.TestCase):
     def test_every_figure_shown_is_there(self):
         for report in sorted(RESULTS.glob("*/REPORT.md")):
             targets = re.findall(r"\]\((figures/[^)]+)\)", report.read_text())
-            self.assertGreater(len(targets), 5, report)
+            self.assertTrue(any("coverage-" in t for t in targets), f"{report}: no coverage figure")
             for target in targets:
                 self.assertTrue((report.parent / target).is_file(), f"{report}: {target}")
 

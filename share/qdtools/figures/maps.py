@@ -8,7 +8,8 @@ is one image whose columns nest dimensions 0, 2, 4, ... and whose rows nest 1, 3
 earlier dimension outside (2-D: columns = dimension 0, rows = dimension 1; 1-D: one row).
 share/environments.toml may name the dimensions to draw to the right for a descriptor whose
 dimensions are listed rows first (the paper's). Cells are square, unless the image would be more
-than MAX_RATIO times wider than high (or higher than wide): it is then stretched to that ratio."""
+than MAX_RATIO times wider than high (or higher than wide): it is then stretched to that ratio.
+A CVT archive (grid.toml kind = "cvt") is drawn by voronoi.py instead, as its Voronoi cells."""
 import math
 
 import matplotlib.colors
@@ -16,6 +17,7 @@ import numpy as np
 from matplotlib.patches import Patch
 
 from .. import ToolError, tables
+from . import voronoi
 from .common import legend_below, run_title, slug
 
 MAX_PANELS = 36
@@ -72,15 +74,18 @@ def plot(out, run, colors=("occupancy", "fitness")):
     cells = archive.cells
     if cells.size and (cells.min() < 0 or cells.max() >= grid.cells):
         raise ToolError(f"{run.path / 'archive.csv'}: a cell index outside the {grid.cells} cells of grid.toml")
+    painter = draw
     if grid.is_cvt:
-        print(f"qdplot: no map for {run.path}: its archive is a CVT (grid.toml kind = \"cvt\", {grid.cells} "
-              "centroids), which qdplot does not draw yet")
-        return
+        why = voronoi.drawable(grid)
+        if why:
+            print(f"qdplot: no map for {run.path}: {why}")
+            return
+        painter = voronoi.plot
     if "occupancy" in colors:
-        draw(out, run, grid, archive, "occupancy")
+        painter(out, run, grid, archive, "occupancy")
     if "fitness" in colors:
         if has_fitness(archive):
-            draw(out, run, grid, archive, "fitness")
+            painter(out, run, grid, archive, "fitness")
         else:
             print(f"qdplot: no fitness map for {run.path}: every elite has the same fitness (objective)")
 

@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 # Figure sizes in inches; pixels = inches x dpi (no tight bounding box, so sizes are exact). Maps
 # take theirs from their layout (figures/maps.py).
-SIZES = {"coverage": (8.0, 6.0), "map-panels": (12.0, 6.5), "map-very-wide": (14.0, 4.0), "map-wide": (12.0, 4.5),
+SIZES = {"coverage": (8.0, 6.0), "qd": (8.0, 9.0), "map-voronoi": (7.5, 6.5), "map-panels": (12.0, 6.5), "map-very-wide": (14.0, 4.0), "map-wide": (12.0, 4.5),
          "map-square": (7.5, 6.5), "map-tall": (6.5, 9.0), "traces": (7.0, 7.0), "latents": (11.0, 5.0),
          "losses": (8.0, 5.0)}
 MANIFEST = "qdplot.json"

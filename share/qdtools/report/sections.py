@@ -31,7 +31,12 @@ class Report:
         return sorted({s["epoch_cap"] for s in self.every_run if s["epoch_cap"] is not None})
 
     def name(self, alg):
-        return tables.algorithms().by_experiment[alg]["name"]
+        """An algorithm's name as its runs give it (a figure's label), else the table's, else the
+        experiment file's stem."""
+        for (_, a), infos in self.runs.items():
+            if a == alg and infos:
+                return infos[0]["algorithm"]
+        return tables.algorithms().by_experiment.get(alg, {}).get("name", alg)
 
     def run_name(self, env, alg):
         """The runs' directory name under runs/: the experiment's name, which the reference set
@@ -77,10 +82,10 @@ def ratio(measured, estimate):
     return f"{measured / estimate:.2f}" if estimate > 0 else "n/a"
 
 
-def mixing_text(alg, summaries):
+def mixing_text(summaries):
     """The median over runs of the share of parameter-space offspring in each run's last loop, or '-'."""
     values = [s["mixing"] for s in summaries if not math.isnan(s["mixing"])]
-    plotted = tables.algorithms().by_experiment[alg].get("mixing_ratio")
+    plotted = any(tables.algorithms().plots_mixing_ratio(s["algorithm"]) for s in summaries)
     return fmt(stats.nearest(values, 50), 2) if plotted and values else "-"
 
 
@@ -109,7 +114,7 @@ RATIO_AT = (20000, 50000, 100000, 200000, 300000, 500000, 1000000, 2000000)
 # ---- sections ---------------------------------------------------------------------------------
 
 def title(r):
-    lines = ["# PoMS reproduction report", ""]
+    lines = [f"# {r.header.get('title') or 'PoMS reproduction report'}", ""]
     if r.header.get("preface"):
         lines += [r.header["preface"].rstrip("\n"), ""]
     return lines
@@ -124,7 +129,7 @@ def header(r):
     elif sel.get("loops") is not None:
         budget = f"experiment.loops = {sel['loops']} for every run"
     else:
-        budget = "the experiment files' own (the paper's)"
+        budget = "the experiment files' own"
     caps = r.caps
     lines = [f"- date: {h.get('date', '?')}", f"- qdrun: {h.get('qdrun', '?')}", f"- machine: {h.get('machine', '?')}",
              "- runs made on: " + "; ".join(f"{m} ({n} run{'s' if n != 1 else ''})" for m, n in sorted(built.items())),
@@ -186,7 +191,7 @@ def environment(r, env):
         rows.append(f"| {name} | {len(done)}/{len(infos)} | {done[0]['evaluations']} | "
                     f"{n(el, 50)} ({n(el, 25)}-{n(el, 75)}) | {pcts}{fmt(n(walls, 50))} | "
                     f"{fmt(n([s['train'] for s in done], 50))} | {fmt(n(rates, 50), 0)} | "
-                    f"{mixing_text(a, done)} | {epochs_text(infos)} |")
+                    f"{mixing_text(done)} | {epochs_text(infos)} |")
     caption = cap_caption(env_runs)
     if caption:
         lines += [caption, ""]
@@ -196,6 +201,8 @@ def environment(r, env):
               "|---|---|---|---|" + "---|" * len(of) + "---|---|---|---|---|"] + rows
     for f in r.figures_of("coverage", env):
         lines += ["", f"![coverage {env}](figures/{f})", ""]
+    qd = qd_table(r, env)
+    lines += qd[1:] if lines[-1] == "" else qd
     for kind in ("map", "traces", "latents", "losses"):
         for a in r.algs:
             for f in r.figures_of(kind, env, a):
@@ -211,9 +218,35 @@ def environment(r, env):
             pcts = "".join(f"{percent(s['elites'], c)} | " for c in of)
             lines.append(f"| {r.name(a)} | {s['seed']} | {s['loops']} | {s['evaluations']} | {s['elites']} | "
                          f"{pcts}{fmt(s['wall'])} | {fmt(s['train'])} | {fmt(rate, 0)} | {s['workers']} | "
-                         f"{s['status']} | {mixing_text(a, [s])} | {epochs_text([s])} |")
+                         f"{s['status']} | {mixing_text([s])} | {epochs_text([s])} |")
     lines += ["", "</details>"]
     return lines
+
+
+def qd_table(r, env):
+    """The QD metrics of an environment's complete runs (metrics.csv's last row), or the sentence
+    saying its task has no fitness."""
+    done = {a: [s for s in r.runs[(env, a)] if s["status"] == "complete"] for a in r.algs}
+    if not any(s["has_fitness"] for infos in done.values() for s in infos):
+        return ["", "QD metrics: no task fitness (the environment declares none: metrics.csv's qd_score, max_fitness "
+                    "and mean_fitness are empty).", ""]
+    n = stats.nearest
+    lines = ["", "QD metrics at the end of the complete runs (metrics.csv's last row): the QD score is the sum over the "
+                 "elites of fitness minus the task's lower bound (`qdrun --describe` and the experiment file state "
+                 "it); median (q25-q75) over seeds.", "",
+             "| algorithm | complete runs | evaluations | QD score | max fitness | mean fitness |", "|---|---|---|---|---|---|"]
+    for a, infos in done.items():
+        infos = [s for s in infos if s["has_fitness"]]
+        if not infos:
+            continue
+        cols = []
+        for key, digits in (("qd_score", 0), ("max_fitness", 2), ("mean_fitness", 2)):
+            v = [s[key] for s in infos]
+            cols.append(f"{fmt(n(v, 50), digits)} ({fmt(n(v, 25), digits)}-{fmt(n(v, 75), digits)})")
+        lines.append(f"| {r.name(a)} | {len(infos)} | {infos[0]['evaluations']} | " + " | ".join(cols) + " |")
+    for f in r.figures_of("qd", env):
+        lines += ["", f"![QD metrics {env}](figures/{f})"]
+    return lines + [""]
 
 
 def environments(r):
@@ -336,7 +369,7 @@ def lengthening(r):
     return lines
 
 
-PAPER_AT = (100000, 200000, 300000, 500000, 1000000, 2000000)
+PAPER_AT = (20000, 50000, 100000, 200000, 300000, 500000, 1000000, 2000000)
 
 
 def coverage_at(summary, evaluations, of):
@@ -414,7 +447,7 @@ def diagnostics(r):
             infos = r.runs[(env, a)]
             if not infos:
                 continue
-            if algs.by_experiment[a].get("mixing_ratio"):
+            if any(algs.plots_mixing_ratio(s["algorithm"]) for s in infos):
                 ratio = stats.paper_mixing_ratio([s["run"] for s in infos])
                 if ratio is not None:
                     ev, mean, _ = ratio

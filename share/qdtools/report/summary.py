@@ -69,6 +69,15 @@ def loop_rates(run):
     return {"loop_rates": rates, "loop_ends": ends}
 
 
+def qd_metrics(run):
+    """The QD metrics of the run's last metrics row (NaN for a task without fitness) and whether the
+    task has a fitness."""
+    last = run.metrics[-1] if run.metrics else {}
+    values = {k: last.get(k, math.nan) for k in ("qd_score", "max_fitness", "mean_fitness")}
+    values = {k: v if isinstance(v, float) else math.nan for k, v in values.items()}
+    return dict(values, has_fitness=run.has_fitness())
+
+
 def training_epochs(run):
     """The representation's epochs per loop (training.csv), [] when it trains nothing."""
     path = run.file("training.csv")
@@ -99,7 +108,7 @@ def elite_parameter_norms(run):
     return {"parameter_norm_median": float(np.median(norms)), "parameter_norm_max": max(norms)}
 
 
-FIELDS = [mixing_last_loop, loop_rates, training_epochs]
+FIELDS = [mixing_last_loop, loop_rates, training_epochs, qd_metrics]
 # Functions of a full run returning {name: number or text}, stored for studies (summary.toml).
 KEPT = [elite_parameter_norms]
 
