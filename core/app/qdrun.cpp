@@ -58,6 +58,7 @@ struct Cli {
   bool quiet = false, list = false, version = false;
   // Sweeps (several files and/or --seeds), replay of all elites, latent codes.
   std::string seeds, traces, latents;
+  std::string planned_config;  // from a sweep: the checksum of the configuration it planned
   std::vector<std::string> optional_sets;
   long long evaluations = -1;
   int jobs = 0;
@@ -223,6 +224,11 @@ int run_one(const Cli& cli, const std::string& command_line) {
   const fs::path hint_dir = cli.resume.empty() ? fs::path() : fs::path(cli.resume);
   auto build = [&](auto&& f) { return hint_dir.empty() ? f() : with_plugin_hint(hint_dir, reg, f); };
   Experiment ex = build([&] { return resolve(doc, reg); });
+  // A sweep's run: the experiment file may have been edited since the sweep planned it.
+  if (!cli.planned_config.empty() && app::planned_config_tag(ex.resolved_toml) != cli.planned_config)
+    throw InputError(cli.experiments.front() +
+                     " (or a file it includes) changed since the sweep planned this run; run the sweep again to "
+                     "plan with it");
   print_notes(cli, ex);
   opt.workers = cli.workers;
   opt.stop_after_loop = cli.stop_after_loop;
@@ -499,7 +505,9 @@ int qdrun_main(int argc, char** argv) {
   visible.add(sweeping);
   // clang-format on
   po::options_description hidden;
-  hidden.add_options()("experiment", po::value(&cli.experiments)->composing(), "experiment file");
+  hidden.add_options()("experiment", po::value(&cli.experiments)->composing(), "experiment file")(
+      "planned-config", po::value(&cli.planned_config),
+      "from a sweep: planned_config_tag of the planned configuration");
   po::options_description all;
   all.add(visible).add(hidden);
   po::positional_options_description pos;

@@ -182,22 +182,25 @@ int completed_loops(const fs::path& metrics, int iterations) {
   return done;
 }
 
-// The configuration a run of `file` gets (canonical, components not built): what the sweep planned,
-// and checked again when the run starts.
+// The configuration a run of `file` gets, as the child qdrun resolves it (components not built):
+// what the sweep planned, checked again when the run starts (here, and by the child itself).
 std::string run_configuration(const SweepOptions& o, const std::string& file, const std::uint64_t* seed,
                               const std::vector<std::string>& overrides, RegistryCache& regs) {
   const Document doc = read_run_document(o, file, seed, overrides);
-  return canonical(runtime::resolve(doc, regs.get(doc.plugin_paths())).resolved_toml);
+  return runtime::resolve(doc, regs.get(doc.plugin_paths())).resolved_toml;
 }
 
 // A run starts with the configuration the sweep planned and checked, or not at all: its experiment
 // file (or one it includes) edited while the sweep runs, a sweep of hours, would otherwise give
-// runs of two configurations under one name without a word.
+// runs of two configurations under one name without a word. Checked before the run starts (which
+// names the difference); the child checks it once more when it has read the file
+// (--planned-config), which closes the window between the two.
 void check_unchanged(const SweepOptions& o, const PlannedRun& r, RegistryCache& regs) {
   const std::string now = run_configuration(o, r.file, r.seed, r.overrides, regs);
   if (now != r.resolved)
     throw InputError(r.file + " (or a file it includes) changed since the sweep planned this run (" +
-                     first_difference(r.resolved, now, "then") + "); run the sweep again to plan with it");
+                     first_difference(canonical(r.resolved), canonical(now), "then") +
+                     "); run the sweep again to plan with it");
 }
 
 PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::uint64_t* seed, RegistryCache& regs) {
@@ -231,6 +234,7 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
   p.label = now.settings.name + "/seed-" + std::to_string(now.settings.seed);
   p.resolved = run_configuration(o, file, seed, overrides, regs);
   p.child.push_back(file);
+  p.child.insert(p.child.end(), {"--planned-config", planned_config_tag(p.resolved)});
   if (seed) p.child.insert(p.child.end(), {"--seed", std::to_string(*seed)});
   if (!o.output.empty()) p.child.insert(p.child.end(), {"--output", o.output});
   for (const auto& s : overrides) p.child.insert(p.child.end(), {"--set", s});
@@ -514,6 +518,12 @@ void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& r
 }
 
 }  // namespace
+
+std::string planned_config_tag(const std::string& resolved_toml) {
+  char tag[16];
+  std::snprintf(tag, sizeof(tag), "%08x", runtime::crc32c(resolved_toml.data(), resolved_toml.size()));
+  return tag;
+}
 
 std::vector<std::uint64_t> parse_seed_list(const std::string& text) {
   constexpr std::uint64_t kMaxSeed = 9000000000000000;  // experiment.seed's range

@@ -24,6 +24,10 @@ struct SweepOptions {
   bool dry_run = false;                    // plan and print, start nothing
 };
 
+// What a sweep passes a child qdrun with --planned-config: a checksum of the resolved configuration
+// (runtime::Experiment::resolved_toml) it planned the run with. The child refuses to run another.
+std::string planned_config_tag(const std::string& resolved_toml);
+
 // Parses "100,200,300" (and ranges "1-5"); throws qd::InputError.
 std::vector<std::uint64_t> parse_seed_list(const std::string& text);
 

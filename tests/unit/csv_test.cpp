@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <fcntl.h>
+#include <linux/fs.h>
+#include <sys/ioctl.h>
 #include <sys/stat.h>
 #include <sys/sysmacros.h>
 #include <unistd.h>
@@ -215,5 +217,37 @@ TEST(AtomicFile, NeverReplacesADeviceFifoOrDirectory) {
               std::string::npos);
     EXPECT_TRUE(fs::is_character_file(d / "null"));
   }
+  fs::remove_all(d);
+}
+
+namespace {
+// Sets or clears the immutable attribute (chattr +i) of `path`; false where that is not allowed
+// (not root, a file system without it).
+bool set_immutable(const fs::path& path, bool on) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  int flags = 0;
+  bool ok = ::ioctl(fd, FS_IOC_GETFLAGS, &flags) == 0;
+  flags = on ? (flags | FS_IMMUTABLE_FL) : (flags & ~FS_IMMUTABLE_FL);
+  ok = ok && ::ioctl(fd, FS_IOC_SETFLAGS, &flags) == 0;
+  ::close(fd);
+  return ok;
+}
+}  // namespace
+
+// A rename the system refuses (an immutable file in the way) is an error, and the temporary file
+// is not left behind.
+TEST(AtomicFile, AFailedRenameLeavesNoTemporaryFile) {
+  const fs::path d = fresh_directory("rename");
+  std::ofstream(d / "status") << "old\n";
+  if (!set_immutable(d / "status", true)) {
+    fs::remove_all(d);
+    GTEST_SKIP() << "cannot make a file immutable here";
+  }
+  const std::string error = error_of([&] { write_file_atomic(d / "status", "new\n"); });
+  set_immutable(d / "status", false);
+  EXPECT_NE(error.find("cannot rename"), std::string::npos) << error;
+  EXPECT_FALSE(fs::exists(d / "status.tmp"));
+  EXPECT_EQ(slurp(d / "status"), "old\n");
   fs::remove_all(d);
 }

@@ -110,7 +110,12 @@ void AtomicFile::commit() {
     ::unlink(tmp_.c_str());
     throw SystemError("cannot write " + tmp_.string() + ": " + std::strerror(errno));
   }
-  rename_durably(tmp_, path_);
+  try {
+    rename_durably(tmp_, path_);
+  } catch (...) {
+    ::unlink(tmp_.c_str());  // not left behind when the rename fails
+    throw;
+  }
 }
 
 AppendLog::~AppendLog() {
