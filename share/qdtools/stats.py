@@ -1,5 +1,5 @@
 """Statistics over seeds as the reference's plots compute them: numpy's 'nearest' percentiles, the
-coverage curve as a step function of evaluations, moving means, and the mixing ratio aggregated as
+coverage curve as a step function of evaluations, and the mixing ratio aggregated as
 the paper's figures aggregate it (paper_mixing_ratio)."""
 import math
 
@@ -52,20 +52,6 @@ def loop_ends(run):
     for m in run.metrics:
         ends[int(m["loop"])] = m["evaluations"]
     return sorted(ends.values())
-
-
-def moving_mean(values, window):
-    """The mean of the last `window` non-NaN values up to each position (NaN where there are none)."""
-    v = np.asarray(values, dtype=float)
-    if window <= 1 or v.size == 0:
-        return v
-    out = np.full(v.size, np.nan)
-    for i in range(v.size):
-        seg = v[max(0, i - window + 1):i + 1]
-        seg = seg[~np.isnan(seg)]
-        if seg.size:
-            out[i] = seg.mean()
-    return out
 
 
 def mean(values):

@@ -10,12 +10,11 @@ and observation, policy, representation (HD, LD), mutator (Σ, σ), seed and exp
   reference_table.py --self-test EXPERIMENTS_DIR   check that one wrong value in a copy fails, per value
 """
 import re
-import shutil
 import sys
-import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import mutations  # noqa: E402
 from paper_table import load  # noqa: E402  (the includes merged as qdrun merges them)
 
 ALGORITHMS = ["poms", "poms-pca", "poms-no-jacobian", "dde", "iso", "iso-line-dd", "ps-uniform", "ps-glorot"]
@@ -138,25 +137,7 @@ MUTATIONS = [
 
 
 def self_test(root):
-    failures = []
-    if check(root, root / "README.md"):
-        failures.append("the files as they are do not pass")
-    for rel, old, new in MUTATIONS:
-        with tempfile.TemporaryDirectory() as tmp:
-            copy = Path(tmp) / "experiments"
-            shutil.copytree(root, copy)
-            path = copy / rel
-            text = path.read_text()
-            if old not in text:
-                failures.append(f"{rel}: '{old}' not found (update MUTATIONS)")
-                continue
-            path.write_text(text.replace(old, new, 1))
-            errors = check(copy, copy / "README.md")
-            if not errors:
-                failures.append(f"{rel}: '{old}' -> '{new}' was not detected")
-            else:
-                print(f"detected {rel}: {old} -> {new}: {errors[0]}")
-    return failures
+    return mutations.self_test(root, MUTATIONS, lambda d: check(d, d / "README.md"))
 
 
 def main():

@@ -29,12 +29,6 @@ class Nearest(unittest.TestCase):
         self.assertEqual(got[1], 5.0)  # [5, 7]: rank 0.5 rounds to even, 0
         self.assertTrue(math.isnan(got[2]))
 
-    def test_moving_mean(self):
-        self.assertEqual(stats.moving_mean([1, 2, 3, 4], 2).tolist(), [1.0, 1.5, 2.5, 3.5])
-        out = stats.moving_mean([math.nan, 2, math.nan, 4], 3)
-        self.assertTrue(math.isnan(out[0]))
-        self.assertEqual(out[1:].tolist(), [2.0, 2.0, 3.0])
-
 
 class Coverage(unittest.TestCase):
     def test_step_function_in_percent_and_nan_past_the_end(self):
