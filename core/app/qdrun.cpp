@@ -10,11 +10,11 @@
 #include "progress.hpp"
 #include "run_guard.hpp"
 #include "runtime/components.hpp"
-#include "runtime/csv.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
 #include "runtime/replay.hpp"
 #include "runtime/run.hpp"
+#include "runtime/run_files.hpp"
 #include "sweep.hpp"
 
 #include <qd/errors.hpp>

@@ -2,13 +2,14 @@
 
 #include "run_guard.hpp"
 #include "runtime/checkpoint.hpp"
+#include "runtime/clock.hpp"
 #include "runtime/components.hpp"
 #include "runtime/cost_estimate.hpp"
-#include "runtime/csv.hpp"
 #include "runtime/evaluator.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/run.hpp"
 #include "runtime/run_directory.hpp"
+#include "runtime/run_files.hpp"
 
 #include <qd/errors.hpp>
 
@@ -22,7 +23,6 @@
 #include <atomic>
 #include <cerrno>
 #include <charconv>
-#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -347,10 +347,6 @@ struct StopForwarding {
   }
 };
 
-double now_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
 // Starts one child qdrun with its output appended to RUN_DIR/qdrun.log. The child gets SIGKILL
 // when the sweep dies, so an interrupted sweep leaves no orphan runs writing into directories.
 pid_t start_child(const std::string& exe, const std::vector<std::string>& args, const fs::path& log) {
@@ -671,7 +667,7 @@ int run_sweep(const SweepOptions& o,
         std::fflush(stdout);
         continue;
       }
-      running[pid] = {i, now_seconds()};
+      running[pid] = {i, runtime::now_seconds()};
       track_child(pid, true);
       std::printf("%s start  %s (%s)\n", tag(i).c_str(), r.label.c_str(), r.why.c_str());
       std::fflush(stdout);
@@ -692,7 +688,7 @@ int run_sweep(const SweepOptions& o,
     const auto [i, t0] = it->second;
     running.erase(it);
     const PlannedRun& r = runs[i];
-    const double seconds = now_seconds() - t0;
+    const double seconds = runtime::now_seconds() - t0;
     const std::string status = read_text(r.dir / "status");
     if (WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 0 && status.rfind("complete", 0) == 0) {
       ++finished;

@@ -4,6 +4,7 @@
 // given), and a linear representation has a known reconstruction error. Each test states the rule
 // of the paper it checks; tests/README.md lists the deliberate bugs each one catches.
 #include "runtime/map_elites.hpp"
+#include "runtime/thread_evaluator.hpp"
 
 #include <qd/rng.hpp>
 

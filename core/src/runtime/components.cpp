@@ -1,7 +1,8 @@
 #include "runtime/components.hpp"
 
 #include "runtime/checkpoint.hpp"
-#include "runtime/csv.hpp"
+#include "runtime/number_text.hpp"
+#include "runtime/run_files.hpp"
 
 #include <qd/errors.hpp>
 

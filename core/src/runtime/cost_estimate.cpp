@@ -1,7 +1,7 @@
 #include "runtime/cost_estimate.hpp"
 
-#include "runtime/archive.hpp"
 #include "runtime/evaluator.hpp"
+#include "runtime/grid_archive.hpp"
 #include "runtime/map_elites.hpp"
 #include "runtime/plugin_output_checks.hpp"
 

@@ -1,6 +1,7 @@
 #include "runtime/experiment.hpp"
 
 #include "runtime/components.hpp"
+#include "runtime/number_text.hpp"
 #include "runtime/run_directory.hpp"
 
 #include <qd/errors.hpp>

@@ -1,12 +1,11 @@
 #include "runtime/map_elites.hpp"
 
-#include "runtime/csv.hpp"
+#include "runtime/clock.hpp"
 
 #include <qd/errors.hpp>
 #include <qd/rng.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <numeric>
 
 namespace qd::runtime {
@@ -131,36 +130,13 @@ void MapElites::evaluate(int loop, int it) {
     const std::string which = f.first == f.last
                                   ? "offspring " + std::to_string(f.first)
                                   : "one of offspring " + std::to_string(f.first) + " to " + std::to_string(f.last);
-    const std::string file = save_fault_offspring(loop, it, f.first, f.last);
+    const std::string file =
+        f.first <= f.last && f.last < static_cast<std::size_t>(offspring_.theta.rows())
+            ? observer_.fault_offspring(loop, it, f.first, f.last, offspring_.theta, seeds_)
+            : "";
     throw PluginError(std::string(f.what()) + " (" + which + " of loop " + std::to_string(loop) + ", iteration " +
                       std::to_string(it) + (file.empty() ? "" : "; parameters and episode seed in " + file) + ")");
   }
-}
-
-std::string MapElites::save_fault_offspring(int loop, int it, std::size_t first, std::size_t last) const {
-  if (run_dir_.empty() || first > last || last >= static_cast<std::size_t>(offspring_.theta.rows())) return "";
-  const std::string path = run_dir_ + "/fault-offspring.csv";
-  std::string text = "loop,iteration,offspring,episode_seed";
-  for (Eigen::Index p = 0; p < offspring_.theta.cols(); ++p) text += ",solution_" + std::to_string(p);
-  text += '\n';
-  for (std::size_t k = first; k <= last; ++k) {
-    for (const std::int64_t v : {std::int64_t{loop}, std::int64_t{it}, static_cast<std::int64_t>(k)}) {
-      append_int(text, v);
-      text += ',';
-    }
-    text += std::to_string(seeds_[k]);
-    for (Eigen::Index p = 0; p < offspring_.theta.cols(); ++p) {
-      text += ',';
-      append_number(text, offspring_.theta(static_cast<Eigen::Index>(k), p));
-    }
-    text += '\n';
-  }
-  try {
-    write_file_atomic(path, text);
-  } catch (const std::exception&) {
-    return "";  // the fault itself is what the user must see
-  }
-  return path;
 }
 
 void MapElites::insert(int loop, int it, IterationOutcome& outcome) {
@@ -231,9 +207,9 @@ void MapElites::reconstruction_errors(Offspring& off) {
 void MapElites::fit_representation(int loop) {
   if (c_.representation->latent_size() == 0) return;
   observer_.training_started(loop);
-  const auto t0 = std::chrono::steady_clock::now();
+  const double t0 = now_seconds();
   const FitReport report = representation_.fit(dataset_, FitContext{loop, s_.seed, run_dir_});
-  observer_.training_done(loop, report, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  observer_.training_done(loop, report, now_seconds() - t0);
   if (loop == 0) {
     // At loop 1 the archive is rebuilt from D with the errors of the loop-0 model (paper, Sec. 3);
     // later errors stay as stored at insertion (the reference's stale values).

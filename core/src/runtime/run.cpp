@@ -1,7 +1,9 @@
 #include "runtime/run.hpp"
 
 #include "runtime/archive_csv.hpp"
-#include "runtime/csv.hpp"
+#include "runtime/clock.hpp"
+#include "runtime/number_text.hpp"
+#include "runtime/run_files.hpp"
 
 #include <qd/errors.hpp>
 #include <qd/version.hpp>
@@ -9,7 +11,6 @@
 #include <malloc.h>
 #include <unistd.h>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <ctime>
@@ -20,10 +21,6 @@ namespace qd::runtime {
 namespace fs = std::filesystem;
 
 namespace {
-
-double now_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 std::string utc_now() {
   const std::time_t t = std::time(nullptr);
@@ -332,6 +329,32 @@ void Run::training_done(int loop, const FitReport& r, double seconds) {
   row += r.stopped_early ? ",1," : ",0,";
   append_number(row, seconds);
   dir_.append_training(row + "\n");
+}
+
+std::string Run::fault_offspring(int loop, int it, std::size_t first, std::size_t last, const Matrix& theta,
+                                 const std::vector<std::uint64_t>& seeds) {
+  const std::string path = dir_.path().string() + "/fault-offspring.csv";
+  std::string text = "loop,iteration,offspring,episode_seed";
+  for (Eigen::Index p = 0; p < theta.cols(); ++p) text += ",solution_" + std::to_string(p);
+  text += '\n';
+  for (std::size_t k = first; k <= last; ++k) {
+    for (const std::int64_t v : {std::int64_t{loop}, std::int64_t{it}, static_cast<std::int64_t>(k)}) {
+      append_int(text, v);
+      text += ',';
+    }
+    text += std::to_string(seeds[k]);
+    for (Eigen::Index p = 0; p < theta.cols(); ++p) {
+      text += ',';
+      append_number(text, theta(static_cast<Eigen::Index>(k), p));
+    }
+    text += '\n';
+  }
+  try {
+    write_file_atomic(path, text);
+  } catch (const std::exception&) {
+    return "";  // the fault itself is what the user must see
+  }
+  return path;
 }
 
 void Run::write_provenance() const {

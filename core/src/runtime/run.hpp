@@ -3,12 +3,13 @@
 // resumes from its last checkpoint bit-identically.
 #pragma once
 
-#include "runtime/archive.hpp"
 #include "runtime/checkpoint.hpp"
 #include "runtime/components.hpp"
 #include "runtime/evaluator.hpp"
 #include "runtime/experiment.hpp"
+#include "runtime/grid_archive.hpp"
 #include "runtime/map_elites.hpp"
+#include "runtime/mpi_session.hpp"
 #include "runtime/registry.hpp"
 #include "runtime/run_directory.hpp"
 
@@ -91,6 +92,9 @@ class Run final : private LoopObserver {
   void iteration_done(const IterationOutcome& outcome) override;
   void training_started(int loop) override;
   void training_done(int loop, const FitReport& report, double seconds) override;
+  // Writes fault-offspring.csv; returns its path, or "" when that fails.
+  std::string fault_offspring(int loop, int iteration, std::size_t first, std::size_t last, const Matrix& theta,
+                              const std::vector<std::uint64_t>& seeds) override;
   // Loads and verifies the checkpoint; `resuming` also checks the configuration against the
   // checkpoint's and cuts the logs back to it.
   void load_checkpoint(bool resuming);

@@ -8,7 +8,7 @@
 #pragma once
 
 #include "runtime/checkpoint.hpp"
-#include "runtime/csv.hpp"
+#include "runtime/run_files.hpp"
 
 #include <filesystem>
 #include <string>
