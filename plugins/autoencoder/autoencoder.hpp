@@ -121,7 +121,6 @@ class Autoencoder final : public Representation {
   void reconstruction_errors(const Matrix& theta, Vector& errors) const override {
     model_->reconstruction_errors(theta, errors);
   }
-  std::vector<std::string> log_files() const override { return {kLossesFile}; }
   // Times two epochs of a fresh model of this shape on random data (one thread) and scales them by
   // the rows and by the epochs each loop runs: max_epochs where there is no test set (loop 0 of the
   // reference split), early_stop_window + 2 otherwise, the fewest epochs early stopping allows and

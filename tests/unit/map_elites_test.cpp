@@ -64,6 +64,7 @@ class ScriptedMutator final : public Mutator {
  public:
   explicit ScriptedMutator(bool parents) : parents_(parents) {}
   bool uses_parents() const noexcept override { return parents_; }
+  std::vector<std::string> metric_names() const override { return {kMixingRatio}; }
   void mutate(const Parents& parents, std::size_t count, MutateContext&, Offspring& out) override {
     seen_parents.push_back(parents.cells);
     out.reset(count, kP, latent_size);
@@ -78,7 +79,7 @@ class ScriptedMutator final : public Mutator {
         out.has_latent[i] = 1;
       }
     }
-    out.mixing_ratio = 0.25;
+    out.metrics = {0.25};  // the mixing ratio
   }
   void feedback(const Feedback& fb) override {
     feedbacks.push_back(fb);
@@ -137,7 +138,7 @@ class Recorder final : public LoopObserver {
  public:
   void iteration_done(const IterationOutcome& o) override {
     outcomes.push_back(o);
-    mixing.push_back(o.offspring->mixing_ratio);
+    mixing.push_back(o.offspring->metrics.at(0));
   }
   void training_done(int loop, const FitReport&, double) override { trained.push_back(loop); }
   std::vector<IterationOutcome> outcomes;
@@ -176,12 +177,13 @@ struct World {
     mutator = m.get();
     initial = i.get();
     mutator->latent_size = with_model ? 1 : 0;
+    c.metric_names = m->metric_names();
     c.mutator = std::move(m);
     c.initial = std::move(i);
     evaluator = std::make_unique<ThreadEvaluator>(*c.environment, *c.descriptor, c.shape, 1);
     archive = std::make_unique<Archive>(kCells, c.shape.param_count(), 1);
     dataset = std::make_unique<Dataset>(c.shape.param_count());
-    loop = std::make_unique<MapElites>(s, c, *evaluator, *archive, *dataset, recorder, "");
+    loop = std::make_unique<MapElites>(s, c, *evaluator, *archive, *dataset, recorder);
   }
   // Queues rows (θ0, θ1, θ2) for the initial sampler or the mutator.
   static void queue(ScriptedMutator& m, const std::vector<std::vector<double>>& rows) {

@@ -47,7 +47,9 @@ namespace qd {
 //    offspring (Feedback::results, was `outcomes`); EnvironmentInfo declares fitness and direct
 //    parameter vectors; GridSpec::centroids (CVT); BuildContext::batch, wrapped, stored_grid;
 //    ComponentInfo::flags (descriptor adapters). CHANGELOG.md has the migrations.
-inline constexpr std::uint32_t kPluginAbiVersion = 7;
+// 8: Offspring::mixing_ratio is the metric kMixingRatio; FitContext::log (a TrainingLog) replaces
+//    FitContext::run_dir and Representation::log_files().
+inline constexpr std::uint32_t kPluginAbiVersion = 8;
 
 enum class Kind : std::uint32_t { kEnvironment = 1, kDescriptor = 2, kRepresentation = 3, kMutator = 4 };
 QD_EXPORT const char* to_string(Kind kind) noexcept;

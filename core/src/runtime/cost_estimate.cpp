@@ -63,7 +63,7 @@ EpisodePilot run_episode_pilot(const ExperimentSettings& settings, Components& c
   Archive archive(c.grid.cells, c.shape.param_count(), c.grid.dims());
   Dataset dataset(c.shape.param_count());
   SilentObserver observer;
-  MapElites loop(settings, c, evaluator, archive, dataset, observer, "");
+  MapElites loop(settings, c, evaluator, archive, dataset, observer);
   loop.initial_sampling();
 
   EpisodePilot p;

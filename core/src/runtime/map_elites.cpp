@@ -11,14 +11,13 @@
 namespace qd::runtime {
 
 MapElites::MapElites(const ExperimentSettings& settings, Components& components, Evaluator& evaluator, Archive& archive,
-                     Dataset& dataset, LoopObserver& observer, std::string run_dir)
+                     Dataset& dataset, LoopObserver& observer)
     : s_(settings),
       c_(components),
       evaluator_(evaluator),
       archive_(archive),
       dataset_(dataset),
       observer_(observer),
-      run_dir_(std::move(run_dir)),
       checks_(components),
       representation_(components, checks_) {}
 
@@ -130,10 +129,9 @@ void MapElites::evaluate(int loop, int it) {
     const std::string which = f.first == f.last
                                   ? "offspring " + std::to_string(f.first)
                                   : "one of offspring " + std::to_string(f.first) + " to " + std::to_string(f.last);
-    const std::string file =
-        f.first <= f.last && f.last < static_cast<std::size_t>(offspring_.theta.rows())
-            ? observer_.fault_offspring(loop, it, f.first, f.last, offspring_.theta, seeds_)
-            : "";
+    const std::string file = f.first <= f.last && f.last < static_cast<std::size_t>(offspring_.theta.rows())
+                                 ? observer_.fault_offspring(loop, it, f.first, f.last, offspring_.theta, seeds_)
+                                 : "";
     throw PluginError(std::string(f.what()) + " (" + which + " of loop " + std::to_string(loop) + ", iteration " +
                       std::to_string(it) + (file.empty() ? "" : "; parameters and episode seed in " + file) + ")");
   }
@@ -208,7 +206,7 @@ void MapElites::fit_representation(int loop) {
   if (c_.representation->latent_size() == 0) return;
   observer_.training_started(loop);
   const double t0 = now_seconds();
-  const FitReport report = representation_.fit(dataset_, FitContext{loop, s_.seed, run_dir_});
+  const FitReport report = representation_.fit(dataset_, FitContext{loop, s_.seed, observer_.training_log()});
   observer_.training_done(loop, report, now_seconds() - t0);
   if (loop == 0) {
     // At loop 1 the archive is rebuilt from D with the errors of the loop-0 model (paper, Sec. 3);

@@ -41,6 +41,8 @@ class LoopObserver {
   virtual void iteration_done(const IterationOutcome& outcome) = 0;
   virtual void training_started(int /*loop*/) {}
   virtual void training_done(int loop, const FitReport& report, double seconds) = 0;
+  // Where the representation's fit() logs (FitContext::log); null: nowhere.
+  virtual TrainingLog* training_log() { return nullptr; }
   // A plugin failed on offspring [first, last] of the batch of `loop`, `iteration` (0 <= first <=
   // last < theta.rows()): the run may keep their parameters (rows of `theta`) and episode seeds.
   // Returns the file that now holds them, or "" when none does.
@@ -52,9 +54,8 @@ class LoopObserver {
 
 class MapElites {
  public:
-  // `run_dir` is where the representation may log its training (empty: nowhere).
   MapElites(const ExperimentSettings& settings, Components& components, Evaluator& evaluator, Archive& archive,
-            Dataset& dataset, LoopObserver& observer, std::string run_dir);
+            Dataset& dataset, LoopObserver& observer);
 
   // Runs loop `loop` (0 = the initial random phase) and fits the representation at its end.
   void run_loop(int loop);
@@ -82,7 +83,6 @@ class MapElites {
   Archive& archive_;
   Dataset& dataset_;
   LoopObserver& observer_;
-  std::string run_dir_;
   PluginOutputChecks checks_;
   CheckedRepresentation representation_;  // c_.representation, its output checked
   std::uint64_t evaluations_ = 0;

@@ -15,6 +15,7 @@
 
 #include <qd/dataset.hpp>
 
+#include <exception>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -53,7 +54,7 @@ struct RunOptions {
   std::function<void()> on_start;
 };
 
-class Run final : private LoopObserver {
+class Run final : private LoopObserver, private TrainingLog {
  public:
   // Builds every component (plugin factories run here). Throws qd::InputError / ConfigError /
   // PluginError for bad input; creates nothing on disk.
@@ -92,6 +93,9 @@ class Run final : private LoopObserver {
   void iteration_done(const IterationOutcome& outcome) override;
   void training_started(int loop) override;
   void training_done(int loop, const FitReport& report, double seconds) override;
+  TrainingLog* training_log() override { return this; }
+  // TrainingLog: the representation's logs, kept by the run directory and cut back on resume.
+  void append(const std::string& name, const std::string& header, const std::string& rows) override;
   // Writes fault-offspring.csv; returns its path, or "" when that fails.
   std::string fault_offspring(int loop, int iteration, std::size_t first, std::size_t last, const Matrix& theta,
                               const std::vector<std::uint64_t>& seeds) override;
@@ -124,6 +128,11 @@ class Run final : private LoopObserver {
   double train_seconds_ = 0.0;
   double session_start_ = 0.0;
   std::string metrics_row_;
+  std::vector<std::string> training_logs_;  // the representation's logs, in the order first written
+  std::exception_ptr log_failure_;          // a failed write to one of them
+  bool resumed_ = false;                    // this session continues from a checkpoint
+  // The mutator's kMixingRatio metric, written in metrics.csv's mixing_ratio column (npos: none).
+  std::size_t mixing_metric_ = static_cast<std::size_t>(-1);
 };
 
 }  // namespace qd::runtime
