@@ -1,5 +1,7 @@
 // Configuration errors: each must name the place (file:line:column or --set) and the key. Also the
 // files a run writes from a resolved configuration (archive.csv).
+#include "describe.hpp"
+#include "runtime/cost_model.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/run.hpp"
 
@@ -12,6 +14,7 @@
 
 using namespace qd;
 using namespace qd::runtime;
+using qd::app::describe_table;
 namespace fs = std::filesystem;
 
 namespace {
@@ -98,12 +101,15 @@ TEST(Config, ZeroAndNegativeBudgetsAreOutOfRange) {
 
 TEST(Config, TheCostTableIsReadButIsNotPartOfTheRunsConfiguration) {
   const std::string cost = "\n[cost]\nevaluations = [0, 1000, 5000]\noffspring_time = [1.0, 1.5, 2.5]\n";
-  const Experiment with = resolve(Document::parse(kValid + cost, "exp.toml"), registry());
-  EXPECT_EQ(with.settings.cost.evaluations, (std::vector<double>{0, 1000, 5000}));
-  EXPECT_EQ(with.settings.cost.offspring_time, (std::vector<double>{1.0, 1.5, 2.5}));
+  const Document doc = Document::parse(kValid + cost, "exp.toml");
+  const Experiment with = resolve(doc, registry());
+  // Read by the planning wing only (--dry-run), not into the run's settings.
+  const CostModel model = read_cost_model(doc);
+  EXPECT_EQ(model.evaluations, (std::vector<double>{0, 1000, 5000}));
+  EXPECT_EQ(model.offspring_time, (std::vector<double>{1.0, 1.5, 2.5}));
   // A run made before the table was added, or under other values, is the same run.
   EXPECT_EQ(with.resolved_toml, resolve(Document::parse(kValid, "exp.toml"), registry()).resolved_toml);
-  EXPECT_TRUE(resolve(Document::parse(kValid, "exp.toml"), registry()).settings.cost.evaluations.empty());
+  EXPECT_TRUE(read_cost_model(Document::parse(kValid, "exp.toml")).evaluations.empty());
 }
 
 TEST(Config, AMalformedCostTableNamesTheKey) {

@@ -111,8 +111,8 @@ struct World {
     s.iterations = 2;
     s.batch = 5;
     s.initial_samples = 6;
-    s.insertion = "coin-flip";
-    s.dataset_order = "reference";
+    s.insertion = InsertionRule::kCoinFlip;
+    s.dataset_order = DatasetOrder::kReference;
     c.shape = PolicyShape(1, {1}, 1);
     c.environment = own<StepsEnvironment>();
     c.descriptor = own<CellDescriptor>();
@@ -128,6 +128,7 @@ struct World {
     c.mutator = own<RowsSampler>(parents);
   }
   ExperimentSettings s;
+  CostModel cost;  // [cost]: none unless a test sets it
   Components c;
   TimedModel* model = nullptr;
 };
@@ -173,7 +174,7 @@ TEST(CostEstimate, PilotOffspringAreTheElitesBredOnce) {
 
 TEST(CostEstimate, MutationEpisodesCostWhatThePilotsOffspringCost) {
   World w(true, 0);
-  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot());
   EXPECT_EQ(e.evaluations, 6 + 2 * 2 * 5);
   EXPECT_DOUBLE_EQ(e.episode_seconds, 6 * 0.020 + 20 * 0.060);
   EXPECT_EQ(e.training_seconds, 0.0);  // no latent space: the model is not asked
@@ -182,7 +183,7 @@ TEST(CostEstimate, MutationEpisodesCostWhatThePilotsOffspringCost) {
 
 TEST(CostEstimate, SamplerEpisodesCostWhatLoopZerosCost) {
   World w(false, 0);
-  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot());
   EXPECT_DOUBLE_EQ(e.episode_seconds, 26 * 0.020);
 }
 
@@ -192,12 +193,12 @@ TEST(CostEstimate, WithoutElitesOffspringArePricedAsLoopZero) {
   p.offspring_seconds = 0.0;
   World w(true, 0);
   EXPECT_DOUBLE_EQ(p.offspring_seconds_per_episode(), 0.020);
-  EXPECT_DOUBLE_EQ(estimate_run_cost(w.s, w.c, p).episode_seconds, 26 * 0.020);
+  EXPECT_DOUBLE_EQ(estimate_run_cost(w.s, w.cost, w.c, p).episode_seconds, 26 * 0.020);
 }
 
 TEST(CostEstimate, TrainingAddsTheModelsTimeForTheExpectedDatasetSizes) {
   World w(true, 1);
-  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot());
   // |D| = 6 after loop 0, then 6 (1 + kDatasetGrowth sqrt(loop)).
   const std::vector<std::size_t> rows = {6, static_cast<std::size_t>(6 * (1 + kDatasetGrowth)),
                                          static_cast<std::size_t>(6 * (1 + kDatasetGrowth * std::sqrt(2.0)))};
@@ -215,7 +216,7 @@ TEST(CostEstimate, DatasetNeverOutgrowsTheGrid) {
 
 TEST(CostEstimate, AResumedRunCountsOnlyTheLoopsLeft) {
   World w(true, 1);
-  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot(), 2);
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot(), 2);
   EXPECT_EQ(e.evaluations, 10);
   EXPECT_DOUBLE_EQ(e.episode_seconds, 10 * 0.060);
   EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * static_cast<double>(expected_dataset_rows(known_pilot(), kCells, 2)));
@@ -223,7 +224,7 @@ TEST(CostEstimate, AResumedRunCountsOnlyTheLoopsLeft) {
 
 TEST(CostEstimate, AResumedRunsOwnRatePricesItsEvaluationsInsteadOfThePilot) {
   World w(true, 1);
-  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot(), 2, {0.5, 1});
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot(), 2, {0.5, 1});
   EXPECT_EQ(e.evaluations, 10);
   EXPECT_DOUBLE_EQ(e.episode_seconds, 10 * 0.5);
   EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * static_cast<double>(expected_dataset_rows(known_pilot(), kCells, 2)));
@@ -247,26 +248,28 @@ TEST(CostEstimate, TheCostTablePricesABreedingRunsEpisodesFromLoopZerosAtEachLoo
   World w(true, 0);
   EXPECT_DOUBLE_EQ(loop_midpoint_evaluations(w.s, 1), 11.0);
   EXPECT_DOUBLE_EQ(loop_midpoint_evaluations(w.s, 2), 21.0);
-  w.s.cost.evaluations = {10, 30};
-  w.s.cost.offspring_time = {2, 4};
-  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
+  w.cost.evaluations = {10, 30};
+  w.cost.offspring_time = {2, 4};
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot());
   // Measured on long runs against loop 0's time, so it replaces the pilot's offspring.
   EXPECT_DOUBLE_EQ(e.episode_seconds, 6 * 0.020 + 10 * 0.020 * 2.1 + 10 * 0.020 * 3.1);
 
   World sampler(false, 0);  // random search does not breed from elites: loop 0's time throughout
-  sampler.s.cost = w.s.cost;
-  EXPECT_DOUBLE_EQ(estimate_run_cost(sampler.s, sampler.c, known_pilot()).episode_seconds, 26 * 0.020);
+  sampler.cost = w.cost;
+  EXPECT_DOUBLE_EQ(estimate_run_cost(sampler.s, sampler.cost, sampler.c, known_pilot()).episode_seconds, 26 * 0.020);
 }
 
 TEST(CostEstimate, AResumedRunsOwnRateGrowsAsTheCostTableDoesFromItsMeasuredLoop) {
   World w(true, 0);
-  w.s.cost.evaluations = {10, 30};
-  w.s.cost.offspring_time = {2, 4};
+  w.cost.evaluations = {10, 30};
+  w.cost.offspring_time = {2, 4};
   // Measured in loop 1 (factor 2.1): loop 2 (factor 3.1) costs 3.1 / 2.1 of it.
-  EXPECT_DOUBLE_EQ(estimate_run_cost(w.s, w.c, known_pilot(), 2, {0.5, 1}).episode_seconds, 10 * 0.5 * 3.1 / 2.1);
+  EXPECT_DOUBLE_EQ(estimate_run_cost(w.s, w.cost, w.c, known_pilot(), 2, {0.5, 1}).episode_seconds,
+                   10 * 0.5 * 3.1 / 2.1);
   World sampler(false, 0);
-  sampler.s.cost = w.s.cost;
-  EXPECT_DOUBLE_EQ(estimate_run_cost(sampler.s, sampler.c, known_pilot(), 2, {0.5, 1}).episode_seconds, 10 * 0.5);
+  sampler.cost = w.cost;
+  EXPECT_DOUBLE_EQ(estimate_run_cost(sampler.s, sampler.cost, sampler.c, known_pilot(), 2, {0.5, 1}).episode_seconds,
+                   10 * 0.5);
 }
 
 TEST(CostEstimate, TheMeasuredLoopsWorkersComeFromTheSessionThatRanIt) {
@@ -285,7 +288,7 @@ TEST(CostEstimate, AModelsBrokenEstimateEndsTheDryRunNamingIt) {
   for (auto fault : {TimedModel::Fault::kWrongSize, TimedModel::Fault::kNan, TimedModel::Fault::kThrows}) {
     World w(true, 1, fault);
     try {
-      estimate_run_cost(w.s, w.c, known_pilot());
+      estimate_run_cost(w.s, w.cost, w.c, known_pilot());
       ADD_FAILURE() << "no error for fault " << static_cast<int>(fault);
     } catch (const PluginError& e) {
       const std::string what = e.what();

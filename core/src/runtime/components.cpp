@@ -136,26 +136,6 @@ bool read_stored_grid(const fs::path& run_dir, GridSpec& g) {
   return true;
 }
 
-std::string toml_string(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    const auto u = static_cast<unsigned char>(c);
-    if (c == '"' || c == '\\') out += '\\';
-    if (c == '\n') {
-      out += "\\n";
-      continue;
-    }
-    if (u < 0x20 || u == 0x7f) {  // TOML allows no control character in a basic string
-      char esc[8];
-      std::snprintf(esc, sizeof(esc), "\\u%04x", u);
-      out += esc;
-      continue;
-    }
-    out += c;
-  }
-  return out + "\"";
-}
-
 void check_grid(const GridSpec& g, const std::string& who) {
   const std::size_t dims = g.dims();
   if (g.cells <= 0 || dims == 0 || g.shape.empty()) throw PluginError(who + " declares an empty grid");
@@ -245,7 +225,7 @@ Components build_components(Experiment& ex, const Registry& registry, const Grid
   if (!c.has_fitness && !std::isnan(ex.settings.fitness_lower_bound))
     throw InputError("[experiment] fitness_lower_bound is set, but " + env_name +
                      " declares no fitness (its README says what its traces report)");
-  if (!c.has_fitness && ex.settings.insertion == "fitness")
+  if (!c.has_fitness && ex.settings.insertion == InsertionRule::kFitness)
     throw InputError("[experiment] insertion = \"fitness\" needs a task fitness, but " + env_name +
                      " declares none; use insertion = \"coin-flip\"");
   if (c.has_fitness && std::isinf(c.fitness_lower_bound))

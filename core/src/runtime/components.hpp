@@ -62,7 +62,4 @@ bool read_stored_grid(const std::filesystem::path& run_dir, GridSpec& grid);
 // centroids of the wrong count or not finite.
 void check_grid(const GridSpec& grid, const std::string& who);
 
-// `s` quoted as a TOML basic string.
-std::string toml_string(const std::string& s);
-
 }  // namespace qd::runtime

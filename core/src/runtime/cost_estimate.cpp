@@ -147,15 +147,15 @@ double loop_midpoint_evaluations(const ExperimentSettings& s, int loop) {
   return s.initial_samples + (loop - 1) * per_loop + per_loop / 2;
 }
 
-CostEstimate estimate_run_cost(const ExperimentSettings& s, Components& c, const EpisodePilot& pilot, int first_loop,
-                               MeasuredRate measured) {
+CostEstimate estimate_run_cost(const ExperimentSettings& s, const CostModel& cost, Components& c,
+                               const EpisodePilot& pilot, int first_loop, MeasuredRate measured) {
   CostEstimate e;
   const bool own_rate = measured.seconds_per_evaluation > 0;
   // [cost], measured on long runs, states a breeding run's time per evaluation as a multiple of
   // loop 0's; without it, the pilot's offspring price those loops. A resumed run's own rate grows
   // as [cost] does from the loop it was measured in.
-  const bool lengthens = c.mutator->uses_parents() && !s.cost.evaluations.empty() && (!own_rate || measured.loop >= 1);
-  auto factor = [&](int loop) { return s.cost.offspring_time_at(loop_midpoint_evaluations(s, loop)); };
+  const bool lengthens = c.mutator->uses_parents() && !cost.evaluations.empty() && (!own_rate || measured.loop >= 1);
+  auto factor = [&](int loop) { return cost.offspring_time_at(loop_midpoint_evaluations(s, loop)); };
   const double base_factor = own_rate && lengthens ? factor(measured.loop) : 1.0;
   const double later_base = own_rate                    ? measured.seconds_per_evaluation
                             : lengthens                 ? pilot.seconds_per_episode()
