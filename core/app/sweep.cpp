@@ -1,18 +1,12 @@
+// Sweeps, stage 3: execution (sweep_stages.hpp). The planned runs as child qdrun processes, a few
+// at a time, each with its share of the cores; stop signals forwarded, every end reported.
 #include "sweep_stages.hpp"
 
 #include "run_guard.hpp"
-#include "runtime/checkpoint.hpp"
-#include "runtime/components.hpp"
-#include "runtime/cost_estimate.hpp"
 #include "runtime/csv.hpp"
 #include "runtime/evaluator.hpp"
-#include "runtime/experiment.hpp"
-#include "runtime/run.hpp"
-#include "runtime/run_directory.hpp"
 
 #include <qd/errors.hpp>
-
-#include <toml++/toml.h>
 
 #include <fcntl.h>
 #include <sys/prctl.h>
@@ -21,16 +15,12 @@
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
-#include <charconv>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
 #include <map>
-#include <memory>
-#include <set>
 #include <sstream>
 
 namespace qd::app {

@@ -22,17 +22,12 @@ using runtime::Registry;
 
 namespace {
 
-// The tables a loop-0 pilot depends on: runs that share them share the pilot's episode costs.
+// The settings a loop-0 pilot depends on: runs that share them share the pilot's episode costs.
 std::string pilot_key(const std::string& resolved_toml) {
   std::string key;
-  std::istringstream in(canonical(resolved_toml));
-  std::string line, table;
-  while (std::getline(in, line)) {
-    if (!line.empty() && line[0] == '[') table = line;
-    if (table == "[environment]" || table == "[descriptor]" || table == "[initial]" || table == "[policy]" ||
-        (table == "[experiment]" && line.rfind("initial_samples", 0) == 0))
-      key += line + "\n";
-  }
+  for (const auto& [name, value] : runtime::config_values(resolved_toml, "the resolved configuration"))
+    for (const char* prefix : {"environment.", "descriptor.", "initial.", "policy.", "experiment.initial_samples"})
+      if (name.rfind(prefix, 0) == 0) key += name + " = " + value + "\n";
   return key;
 }
 

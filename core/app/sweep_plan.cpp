@@ -29,21 +29,6 @@ std::string read_text(const fs::path& p) {
   }
 }
 
-std::string canonical(const std::string& toml) {
-  std::vector<std::string> blocks(1);
-  std::istringstream in(toml);
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.empty()) continue;
-    if (line[0] == '[' && !blocks.back().empty()) blocks.emplace_back();
-    blocks.back() += line + "\n";
-  }
-  std::sort(blocks.begin(), blocks.end());
-  std::string out;
-  for (const auto& b : blocks) out += b;
-  return out;
-}
-
 Document read_run_document(const SweepOptions& o, const std::string& file, const std::uint64_t* seed,
                            const std::vector<std::string>& overrides) {
   Document doc = Document::read(file);
@@ -55,18 +40,13 @@ Document read_run_document(const SweepOptions& o, const std::string& file, const
 
 namespace {
 
-// First line where two texts differ, for the message about a run directory that holds another run
-// (or a file changed since the plan: `then` instead of "there").
+// The first key whose value differs between two resolved configurations (whatever the order of
+// their tables), for the message about a run directory that holds another run (or a file changed
+// since the plan: `then` instead of "there").
 std::string first_difference(const std::string& a, const std::string& b, const char* then = "there") {
-  std::istringstream ia(a), ib(b);
-  std::string la, lb;
-  while (true) {
-    const bool ga = static_cast<bool>(std::getline(ia, la)), gb = static_cast<bool>(std::getline(ib, lb));
-    if (!ga && !gb) return "";
-    if (!ga) la = "<end>";
-    if (!gb) lb = "<end>";
-    if (la != lb) return "'" + la + "' " + then + ", '" + lb + "' now";
-  }
+  const std::vector<runtime::ConfigDifference> d = runtime::config_differences(a, b);
+  if (d.empty()) return "";
+  return "'" + d[0].key + " = " + d[0].before + "' " + then + ", '" + d[0].key + " = " + d[0].after + "' now";
 }
 
 // Whether `key` (table.name) names a parameter the run accepts: core tables always, component
@@ -78,7 +58,7 @@ bool accepts(const runtime::Experiment& ex, const std::string& key) {
     if (table == t.name) return true;
   for (const runtime::ComponentConfig* cc :
        {&ex.environment, &ex.descriptor, &ex.representation, &ex.mutator, &ex.initial}) {
-    if (cc->table != table || !cc->entry) continue;
+    if (cc->table != table || !cc->entry || cc->implied) continue;
     const ComponentInfo& info = *cc->entry->info;
     for (std::uint32_t k = 0; k < info.param_count; ++k)
       if (name == info.params[k].key) return true;
@@ -98,7 +78,7 @@ Checked check(const Document& doc, const Registry& reg) {
   runtime::Experiment ex = runtime::resolve(doc, reg);
   runtime::build_components(ex, reg);  // every factory and cross-check; nothing is written
   const auto& s = ex.settings;
-  return {s, canonical(ex.resolved_toml), fs::path(s.output_dir) / s.name / ("seed-" + std::to_string(s.seed))};
+  return {s, ex.resolved_toml, fs::path(s.output_dir) / s.name / ("seed-" + std::to_string(s.seed))};
 }
 
 // Loops metrics.csv shows complete (loop 0's single row, or a loop's last iteration): where a
@@ -199,9 +179,10 @@ PlannedRun plan_one(const SweepOptions& o, const std::string& file, const std::u
   old.set_integer("output.snapshot_every", now.settings.snapshot_every);
   old.set_string("output.dir", now.settings.output_dir);
   const Checked then = check(old, old_reg);
-  if (then.resolved_toml != now.resolved_toml)
-    throw InputError(p.dir.string() + " holds a run of another configuration than " + file + " (" +
-                     first_difference(then.resolved_toml, now.resolved_toml) +
+  // Compared key by key: config.toml lists the environment's default descriptor among the tables
+  // (it is explicit there), a fresh resolve after them.
+  if (const std::string d = first_difference(then.resolved_toml, now.resolved_toml); !d.empty())
+    throw InputError(p.dir.string() + " holds a run of another configuration than " + file + " (" + d +
                      "); move it away or choose another --output");
   if (!has_checkpoint) {
     p.action = Action::kRestart;
@@ -256,8 +237,7 @@ void check_unchanged(const SweepOptions& o, const PlannedRun& r, RegistryCache& 
   const std::string now = run_configuration(o, r.file, r.seed, r.overrides, regs);
   if (now != r.resolved)
     throw InputError(r.file + " (or a file it includes) changed since the sweep planned this run (" +
-                     first_difference(canonical(r.resolved), canonical(now), "then") +
-                     "); run the sweep again to plan with it");
+                     first_difference(r.resolved, now, "then") + "); run the sweep again to plan with it");
 }
 
 std::vector<PlannedRun> plan_sweep(const SweepOptions& o, RegistryCache& regs) {

@@ -20,10 +20,6 @@ namespace qd::app {
 // A run directory's file as text ("" when missing or unreadable: for the sweep's own lines).
 std::string read_text(const std::filesystem::path& p);
 
-// The resolved configuration with its tables in sorted order: a run directory's config.toml lists
-// the environment's default descriptor among the tables, a fresh resolve appends it at the end.
-std::string canonical(const std::string& toml);
-
 enum class Action { kFresh, kRestart, kResume, kSkip };
 
 struct PlannedRun {
@@ -36,7 +32,7 @@ struct PlannedRun {
   std::vector<std::string> overrides;
   const std::uint64_t* seed = nullptr;
   int first_loop = 0;    // the loop a resumed run starts at
-  std::string resolved;  // the configuration planned (canonical), checked again at its start
+  std::string resolved;  // the configuration planned (resolved_toml), checked again at its start
 };
 
 // One registry per [plugins] path list, set up as qdrun does for one experiment.

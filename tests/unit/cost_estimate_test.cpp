@@ -5,6 +5,7 @@
 #include "runtime/run_directory.hpp"
 
 #include <qd/errors.hpp>
+#include <qd/planning.hpp>
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -29,7 +30,7 @@ constexpr int kMaxSteps = 30;
 
 class StepsEnvironment final : public Environment {
  public:
-  EnvironmentInfo info() const override { return {1, 1, kMaxSteps, ""}; }
+  EnvironmentInfo info() const override { return {1, 1, kMaxSteps}; }
   void rollout(const RolloutBatch& b, Trace* traces) const override {
     for (std::size_t i = b.begin; i < b.end; ++i) {
       traces[i].main.reset(1);
@@ -69,8 +70,22 @@ class RowsSampler final : public Mutator {
   bool parents_;
 };
 
+// A model that says nothing about its fit's cost (no FitTimeEstimate).
+class UntimedModel final : public Representation {
+ public:
+  int latent_size() const noexcept override { return 1; }
+  FitReport fit(const Dataset&, const FitContext&) override { return {}; }
+  void encode(const Matrix& theta, Matrix& z) const override { z = theta.leftCols(1); }
+  void decode(const Matrix& z, Matrix& theta) const override { theta = Matrix::Zero(z.rows(), 4); }
+  void decoder_jacobians(const Matrix& z, std::vector<Matrix>& j) const override {
+    j.assign(static_cast<std::size_t>(z.rows()), Matrix::Zero(4, 1));
+  }
+  void save(std::ostream&) const override {}
+  void load(std::istream&) override {}
+};
+
 // A model whose fit "takes" half a second per row; or one that breaks the contract.
-class TimedModel final : public Representation {
+class TimedModel final : public Representation, public FitTimeEstimate {
  public:
   enum class Fault { kNone, kWrongSize, kNan, kThrows };
   explicit TimedModel(int latent, Fault fault = Fault::kNone) : latent_(latent), fault_(fault) {}
@@ -228,6 +243,14 @@ TEST(CostEstimate, AResumedRunsOwnRatePricesItsEvaluationsInsteadOfThePilot) {
   EXPECT_EQ(e.evaluations, 10);
   EXPECT_DOUBLE_EQ(e.episode_seconds, 10 * 0.5);
   EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * static_cast<double>(expected_dataset_rows(known_pilot(), kCells, 2)));
+}
+
+TEST(CostEstimate, ARepresentationWithoutFitTimeEstimateAddsNoTraining) {
+  World w(true, 1);
+  w.c.representation = own<UntimedModel>();
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot());
+  EXPECT_EQ(e.training_seconds, 0.0);
+  EXPECT_DOUBLE_EQ(e.episode_seconds, 6 * 0.020 + 20 * 0.060);  // the episodes are priced as ever
 }
 
 TEST(CostEstimate, TheCostTableInterpolatesLinearlyAndHoldsItsEnds) {

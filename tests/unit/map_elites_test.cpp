@@ -29,7 +29,7 @@ constexpr double kNanFitness = 7, kInfDescriptor = 8, kCellOutOfRange = 9;
 // trace.main = (θ0, θ1, θ3); fitness θ1; a negative θ0 is a failed episode.
 class ScriptedEnvironment final : public Environment {
  public:
-  EnvironmentInfo info() const override { return {1, 1, 1, ""}; }
+  EnvironmentInfo info() const override { return {1, 1, 1}; }
   void rollout(const RolloutBatch& b, Trace* traces) const override {
     for (std::size_t i = b.begin; i < b.end; ++i) {
       const double* theta = b.row(i);

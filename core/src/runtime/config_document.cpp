@@ -433,14 +433,19 @@ void flatten(const toml::table& t, const std::string& prefix, std::map<std::stri
 }
 }  // namespace
 
-std::vector<ConfigDifference> config_differences(const std::string& before, const std::string& after) {
-  std::map<std::string, std::string> a, b;
+std::map<std::string, std::string> config_values(const std::string& toml, const std::string& source) {
+  std::map<std::string, std::string> out;
   try {
-    flatten(toml::parse(before, std::string_view("checkpoint")), "", a);
-    flatten(toml::parse(after, std::string_view("config.toml")), "", b);
+    flatten(toml::parse(toml, source), "", out);
   } catch (const toml::parse_error& e) {
     throw InputError(location(e.source()) + ": malformed TOML: " + std::string(e.description()));
   }
+  return out;
+}
+
+std::vector<ConfigDifference> config_differences(const std::string& before, const std::string& after) {
+  const std::map<std::string, std::string> a = config_values(before, "checkpoint"),
+                                           b = config_values(after, "config.toml");
   std::vector<ConfigDifference> out;
   for (const auto& [key, value] : a) {
     const auto it = b.find(key);

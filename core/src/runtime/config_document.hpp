@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -58,6 +59,9 @@ struct ConfigDifference {
 };
 // Throws InputError when either text is not TOML.
 std::vector<ConfigDifference> config_differences(const std::string& before, const std::string& after);
+// Every value of a resolved configuration by dotted key ("mutator.sigma" -> "0.2"), whatever the
+// order of its tables. Throws InputError when `toml` is not TOML (`source` names it).
+std::map<std::string, std::string> config_values(const std::string& toml, const std::string& source);
 
 // Keys --resume may change (dotted path): the budget (experiment.loops), how and where evaluations
 // run ([evaluation]), what is written ([output]) and where plugins are found ([plugins]). Anything

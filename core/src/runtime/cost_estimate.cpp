@@ -7,6 +7,7 @@
 
 #include <qd/dataset.hpp>
 #include <qd/errors.hpp>
+#include <qd/planning.hpp>
 #include <qd/rng.hpp>
 
 #include <algorithm>
@@ -180,10 +181,11 @@ CostEstimate estimate_run_cost(const ExperimentSettings& s, const CostModel& cos
     }
     rows.push_back(expected_dataset_rows(pilot, c.grid.cells, loop));
   }
-  if (c.representation->latent_size() == 0 || rows.empty()) return e;
+  // A representation that does not implement FitTimeEstimate costs nothing beyond the episodes.
+  const auto* timing = dynamic_cast<const FitTimeEstimate*>(c.representation.get());
+  if (c.representation->latent_size() == 0 || rows.empty() || !timing) return e;
   std::vector<double> fit;
-  call_plugin(c.representation_label, "estimate_fit_seconds()",
-              [&] { fit = c.representation->estimate_fit_seconds(rows); });
+  call_plugin(c.representation_label, "estimate_fit_seconds()", [&] { fit = timing->estimate_fit_seconds(rows); });
   if (fit.size() != rows.size())
     throw PluginError(c.representation_label + ": estimate_fit_seconds() returned " + std::to_string(fit.size()) +
                       " values for " + std::to_string(rows.size()) + " loops");

@@ -12,6 +12,54 @@
 
 namespace qd::runtime {
 
+namespace {
+
+// Fills `cc` with the defaults of `entry` and appends its resolved table to `ex.resolved_toml`.
+void resolve_default_component(Experiment& ex, ComponentConfig& cc, const ComponentEntry& entry) {
+  cc.type = entry.info->name;
+  cc.entry = &entry;
+  cc.implied = true;
+  cc.config = validate_table(nullptr, cc.table, entry.info->params, entry.info->param_count, cc.type);
+  toml::table out;
+  out.insert_or_assign("type", cc.type);
+  put_config(out, cc.config, entry.info->params, entry.info->param_count);
+  // A dotted table name ("descriptor.wraps") nests: [descriptor.wraps] after [descriptor].
+  const std::size_t dot = cc.table.find('.');
+  toml::table wrapper;
+  if (dot == std::string::npos) {
+    wrapper.insert_or_assign(cc.table, std::move(out));
+  } else {
+    toml::table parent;
+    parent.insert_or_assign(cc.table.substr(dot + 1), std::move(out));
+    wrapper.insert_or_assign(cc.table.substr(0, dot), std::move(parent));
+  }
+  ex.resolved_toml += "\n" + toml_text(wrapper);
+}
+
+// [descriptor] (or an adapter's [descriptor.wraps]) without a type: the environment's default
+// descriptor, as its component info declares it (no plugin object needed). Appended after the
+// other tables, where a run's config.toml has always had it.
+void resolve_default_descriptors(Experiment& ex, const Registry& registry) {
+  const char* dflt = ex.environment.entry->info->default_descriptor;
+  const std::string env_name = "environment '" + ex.environment.type + "'";
+  if (!ex.descriptor.entry) {
+    if (!dflt) throw InputError(env_name + " has no default descriptor; add [descriptor] type = ...");
+    resolve_default_component(ex, ex.descriptor, registry.require(dflt, Kind::kDescriptor));
+    if (ex.descriptor.entry->info->flags & kWrapsDescriptor) ex.wrapped.table = "descriptor.wraps";
+  }
+  if (!(ex.descriptor.entry->info->flags & kWrapsDescriptor) || ex.wrapped.entry) return;
+  if (!dflt)
+    throw InputError(env_name + " has no default descriptor for " + ex.descriptor.type + " to wrap; add [" +
+                     ex.wrapped.table + "] type = ...");
+  const ComponentEntry& entry = registry.require(dflt, Kind::kDescriptor);
+  if (entry.info->flags & kWrapsDescriptor)
+    throw InputError(env_name + "'s default descriptor '" + dflt +
+                     "' wraps a descriptor itself; name the one to wrap in [" + ex.wrapped.table + "]");
+  resolve_default_component(ex, ex.wrapped, entry);
+}
+
+}  // namespace
+
 Experiment resolve(const Document& doc, const Registry& registry) {
   const toml::table& root = doc.impl->root;
   std::vector<std::string> allowed = {"experiment", "policy", "output", "evaluation", "cost", "plugins"};
@@ -48,7 +96,7 @@ Experiment resolve(const Document& doc, const Registry& registry) {
     } else if (ct.default_type && *ct.default_type) {
       cc->type = ct.default_type;
     } else if (ct.default_type) {
-      // Descriptor: the environment's default, chosen once the environment exists.
+      // Descriptor: the environment's default (resolve_default_descriptors, after the other tables).
       if (t && !t->empty()) fail_at(*t, "[descriptor] sets options but no type; add type = \"<descriptor name>\"");
       continue;
     } else {
@@ -94,7 +142,7 @@ Experiment resolve(const Document& doc, const Registry& registry) {
     out.insert_or_assign("type", cc->type);
     put_config(out, cc->config, info.params, info.param_count);
     // A descriptor adapter's [descriptor.wraps]: the descriptor it wraps, a component table of its
-    // own (the environment's default descriptor, filled in by build_components, when absent).
+    // own (the environment's default descriptor, filled in after the other tables, when absent).
     if (adapter) {
       ex.wrapped.table = table + ".wraps";
       const toml::node* wraps = t ? t->get("wraps") : nullptr;
@@ -143,27 +191,8 @@ Experiment resolve(const Document& doc, const Registry& registry) {
     resolved.insert_or_assign("plugins", std::move(t));
   }
   ex.resolved_toml = toml_text(resolved);
+  resolve_default_descriptors(ex, registry);
   return ex;
-}
-
-void resolve_default_component(Experiment& ex, ComponentConfig& cc, const ComponentEntry& entry) {
-  cc.type = entry.info->name;
-  cc.entry = &entry;
-  cc.config = validate_table(nullptr, cc.table, entry.info->params, entry.info->param_count, cc.type);
-  toml::table out;
-  out.insert_or_assign("type", cc.type);
-  put_config(out, cc.config, entry.info->params, entry.info->param_count);
-  // A dotted table name ("descriptor.wraps") nests: [descriptor.wraps] after [descriptor].
-  const std::size_t dot = cc.table.find('.');
-  toml::table wrapper;
-  if (dot == std::string::npos) {
-    wrapper.insert_or_assign(cc.table, std::move(out));
-  } else {
-    toml::table parent;
-    parent.insert_or_assign(cc.table.substr(dot + 1), std::move(out));
-    wrapper.insert_or_assign(cc.table.substr(0, dot), std::move(parent));
-  }
-  ex.resolved_toml += "\n" + toml_text(wrapper);
 }
 
 }  // namespace qd::runtime

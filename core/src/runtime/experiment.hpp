@@ -22,6 +22,9 @@ struct ComponentConfig {
   std::string type;   // component name
   const ComponentEntry* entry = nullptr;
   Config config;
+  // Chosen by the environment (its default descriptor), not named in the file: the table takes no
+  // keys of its own.
+  bool implied = false;
 };
 
 struct Experiment {
@@ -29,7 +32,7 @@ struct Experiment {
   ExperimentSettings settings;
   ComponentConfig environment, descriptor, representation, mutator, initial;
   // [descriptor.wraps]: the descriptor a descriptor adapter (such as "cvt") wraps; table is set only
-  // for an adapter, and entry stays null until build_components fills in the environment's default.
+  // for an adapter (entry then always, by default the environment's own descriptor).
   ComponentConfig wrapped;
   std::string resolved_toml;              // every setting with defaults filled in
   std::vector<std::string> plugin_paths;  // [plugins] path, made absolute
@@ -38,12 +41,9 @@ struct Experiment {
   std::vector<std::string> notes;
 };
 
-// Validates the document against the core schema and each component's declared parameters.
-// Plugins must already be discovered in `registry` (component types are looked up there).
+// Validates the document against the core schema and each component's declared parameters, and
+// fills in every default (the environment's default descriptor included). Plugins must already be
+// discovered in `registry` (component types are looked up there); no component is built.
 Experiment resolve(const Document& doc, const Registry& registry);
-
-// Fills `cc` with the defaults of `entry` and appends its resolved table to `ex.resolved_toml`
-// (used for the descriptor chosen by the environment when the experiment names none).
-void resolve_default_component(Experiment& ex, ComponentConfig& cc, const ComponentEntry& entry);
 
 }  // namespace qd::runtime

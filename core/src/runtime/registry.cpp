@@ -244,6 +244,9 @@ Opened open_checked(const fs::path& path, Rejection& seen) {
     if (!own.insert(c.name).second)
       throw PluginError(where + ": component name '" + std::string(c.name) + "' is registered twice by this plugin");
     if (c.param_count > 0 && !c.params) throw PluginError(where + ": component '" + c.name + "' has no parameter list");
+    if (c.default_descriptor && (c.kind != Kind::kEnvironment || !*c.default_descriptor))
+      throw PluginError(where + ": component '" + c.name +
+                        "' declares an empty default descriptor or is no environment");
     for (std::uint32_t k = 0; k < c.param_count; ++k)
       if (!c.params[k].key || !c.params[k].default_value)
         throw PluginError(where + ": component '" + c.name + "' declares a parameter without a name or default");
@@ -324,6 +327,7 @@ std::string describe_declarations(const PluginInfo& info) {
     put_u32(out, c.flags);
     put_text(out, c.name);
     put_text(out, c.summary);
+    put_text(out, c.default_descriptor);
     put_u32(out, c.param_count);
     for (std::uint32_t k = 0; k < c.param_count; ++k) {
       const ParamSpec& p = c.params[k];
@@ -354,6 +358,7 @@ std::shared_ptr<ProbeCopy> read_declarations(MessageReader& in) {
     c.flags = in.number<std::uint32_t>();
     c.name = in.text(copy->strings);
     c.summary = in.text(copy->strings);
+    c.default_descriptor = in.text(copy->strings);
     c.param_count = in.number<std::uint32_t>();
     if (c.param_count > 100000) throw std::runtime_error("implausible parameter count");
     auto& params = copy->params.emplace_back(c.param_count);
