@@ -5,6 +5,7 @@
 #include <qd/environment.hpp>
 #include <qd/errors.hpp>
 #include <qd/mutator.hpp>
+#include <qd/planning.hpp>
 #include <qd/plugin.hpp>
 #include <qd/representation.hpp>
 
@@ -67,9 +68,7 @@ double ArchiveView::mean_recn_error() const {
   return n == 0 ? 0.0 : sum / static_cast<double>(n);
 }
 
-std::vector<double> Representation::estimate_fit_seconds(const std::vector<std::size_t>& rows) const {
-  return std::vector<double>(rows.size(), 0.0);
-}
+FitTimeEstimate::~FitTimeEstimate() = default;
 
 const char* to_string(Outcome outcome) noexcept {
   switch (outcome) {

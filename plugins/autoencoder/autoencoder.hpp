@@ -6,6 +6,7 @@
 
 #include <qd/config.hpp>
 #include <qd/dataset.hpp>
+#include <qd/planning.hpp>
 #include <qd/representation.hpp>
 #include <qd/rng.hpp>
 
@@ -104,7 +105,7 @@ class Model {
 
 std::unique_ptr<Model> make_model(const Hyper& hyper, int params, std::uint64_t seed);
 
-class Autoencoder final : public Representation {
+class Autoencoder final : public Representation, public FitTimeEstimate {
  public:
   Autoencoder(const Config& cfg, const BuildContext& ctx);
   // For tests and benchmarks that do not go through a Config.

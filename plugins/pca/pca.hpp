@@ -3,6 +3,7 @@
 #pragma once
 
 #include <qd/config.hpp>
+#include <qd/planning.hpp>
 #include <qd/representation.hpp>
 
 #include <cstddef>
@@ -12,7 +13,7 @@ namespace qd::pca {
 
 extern const ParamSpec kParams[1];
 
-class PcaRepresentation final : public Representation {
+class PcaRepresentation final : public Representation, public FitTimeEstimate {
  public:
   PcaRepresentation(const Config& cfg, const BuildContext& ctx);
   // Direct construction (tests): `latent` components of `params`-dimensional vectors.

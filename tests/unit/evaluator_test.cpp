@@ -30,7 +30,7 @@ namespace {
 // early when that action leaves [-0.9, 0.9], and a non-finite action is kInvalidAction.
 class ScriptedEnvironment final : public Environment {
  public:
-  EnvironmentInfo info() const override { return {6, 3, 50, "scripted"}; }
+  EnvironmentInfo info() const override { return {6, 3, 50}; }
   void rollout(const RolloutBatch& batch, Trace* traces) const override {
     Policy policy(*batch.shape);
     std::vector<float> obs(6, 0.0f);
@@ -333,7 +333,7 @@ class HistoryEnvironment final : public Environment {
  public:
   explicit HistoryEnvironment(int worlds) : state_(static_cast<std::size_t>(worlds), 0) {}
   EnvironmentInfo info() const override {
-    EnvironmentInfo i{6, 3, 1, "scripted"};
+    EnvironmentInfo i{6, 3, 1};
     i.persistent_worlds = static_cast<int>(state_.size());
     return i;
   }

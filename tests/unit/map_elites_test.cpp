@@ -30,7 +30,7 @@ constexpr double kNanFitness = 7, kInfDescriptor = 8, kCellOutOfRange = 9;
 // trace.main = (θ0, θ1, θ3); fitness θ1; a negative θ0 is a failed episode.
 class ScriptedEnvironment final : public Environment {
  public:
-  EnvironmentInfo info() const override { return {1, 1, 1, ""}; }
+  EnvironmentInfo info() const override { return {1, 1, 1}; }
   void rollout(const RolloutBatch& b, Trace* traces) const override {
     for (std::size_t i = b.begin; i < b.end; ++i) {
       const double* theta = b.row(i);
@@ -159,9 +159,9 @@ struct World {
     s.iterations = 2;
     s.batch = batch;
     s.initial_samples = initial_samples;
-    s.insertion = "coin-flip";
+    s.insertion = InsertionRule::kCoinFlip;
     s.replace_probability = 0.5;
-    s.dataset_order = "reference";
+    s.dataset_order = DatasetOrder::kReference;
     c.shape = PolicyShape(1, {1}, 1);  // 4 parameters; only the first three are read
     c.environment = own<ScriptedEnvironment>();
     c.descriptor = own<ScriptedDescriptor>();
@@ -280,7 +280,7 @@ TEST(MapElitesLoop, CoinFlipDecidesOnlyOccupiedCells) {
 // replacement that is no improvement.
 TEST(MapElitesLoop, FeedbackTellsEachOffspringsOutcomeAndFitnessChange) {
   World w(false, 5, 2);
-  w.s.insertion = "fitness";
+  w.s.insertion = InsertionRule::kFitness;
   World::queue(*w.initial, {{1, 5}, {2, 5}});
   w.loop->run_loop(0);
   World::queue(*w.mutator, {{1, 4}, {1, 6}, {1, 5.5}, {3, 2}, {-1, 9}});
@@ -339,7 +339,7 @@ TEST(MapElitesLoop, CoinFlipReplacesHalfTheOccupiedOffers) {
 // (ties keep the occupant); no coin is involved.
 TEST(MapElitesLoop, FitnessInsertionReplacesOnlyStrictlyBetter) {
   World w(false, 4, 2);
-  w.s.insertion = "fitness";
+  w.s.insertion = InsertionRule::kFitness;
   World::queue(*w.initial, {{1, 5}, {2, 5}});
   w.loop->run_loop(0);
   World::queue(*w.mutator, {{1, 4}, {1, 5}, {2, 7}, {2, 6}});
@@ -448,7 +448,7 @@ TEST(MapElitesLoop, NonFiniteFitnessOrDescriptorIsInvalidAndNeverStored) {
   EXPECT_EQ(w.recorder.outcomes[0].invalid, 2u);
   World::queue(*w.mutator, {{3, 9, 0, kNanFitness}, {4, 9, 0, kInfDescriptor}, {5, 1}, {6, 1}});
   World::queue(*w.mutator, std::vector<std::vector<double>>(4, {7, 0}));
-  w.s.insertion = "fitness";  // a NaN would otherwise win or block a cell forever
+  w.s.insertion = InsertionRule::kFitness;  // a NaN would otherwise win or block a cell forever
   w.loop->run_loop(1);
   EXPECT_EQ(w.param(3, 1), 5.0);
   EXPECT_EQ(w.param(4, 1), 6.0);

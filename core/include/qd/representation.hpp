@@ -9,6 +9,8 @@
 //  * The const members are thread-safe and may run concurrently.
 //  * save()/load() round-trip the full state (weights and optimiser) bit for bit; the checkpoint
 //    stores the blob. load() throws qd::StateError on a malformed or mismatched blob.
+//  * What `qdrun --dry-run` asks about the cost of fit() is no part of this contract: a model whose
+//    fit is costly implements qd::FitTimeEstimate (<qd/planning.hpp>) beside it.
 #pragma once
 
 #include <qd/component.hpp>
@@ -70,13 +72,6 @@ class QD_EXPORT Representation : public Component {
   virtual void decoder_vjp(const Matrix& z, const Matrix& v, Matrix& out) const;
   // errors[i] = ‖θ_i − Dec(Enc(θ_i))‖₂.
   virtual void reconstruction_errors(const Matrix& theta, Vector& errors) const;
-
-  // Estimated seconds of fit() on one core, one value per loop: rows[l] is the size of D at loop
-  // l's fit (l = 0, 1, ...). `qdrun --dry-run` calls it, on a representation built for the
-  // estimate and never used for a run, to print a sweep's core-hours. Measure (time a little
-  // training on random data of the run's shape) rather than guess. It must not change what this
-  // object computes. Default: zeros, for models whose fit costs little next to the episodes.
-  virtual std::vector<double> estimate_fit_seconds(const std::vector<std::size_t>& rows) const;
 
   virtual void save(std::ostream& out) const = 0;
   virtual void load(std::istream& in) = 0;

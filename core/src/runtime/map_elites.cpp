@@ -68,7 +68,7 @@ void MapElites::initial_sampling() {
   // descending cell index; "insertion" keeps the archive's order.
   std::vector<std::size_t> slots(archive_.size());
   std::iota(slots.begin(), slots.end(), std::size_t{0});
-  if (s_.dataset_order == "reference")
+  if (s_.dataset_order == DatasetOrder::kReference)
     std::sort(slots.begin(), slots.end(), [&](auto a, auto b) { return archive_.cell(a) > archive_.cell(b); });
   for (std::size_t slot : slots) dataset_.add(archive_.params(slot), archive_.cell(slot), 0);
   observer_.iteration_done(outcome);
@@ -141,7 +141,7 @@ void MapElites::insert(int loop, int it, IterationOutcome& outcome) {
   // Sequential, in offspring order. An empty cell takes the offspring; an occupied one is replaced
   // with probability replace_probability (a coin drawn only for occupied cells: the paper's random
   // replacement), or, with insertion = "fitness", when the offspring's fitness is higher.
-  const bool by_fitness = s_.insertion == "fitness";
+  const bool by_fitness = s_.insertion == InsertionRule::kFitness;
   const bool has_model = c_.representation->latent_size() > 0;
   Rng coin(s_.seed, Stream::kInsertion, static_cast<std::uint64_t>(loop), static_cast<std::uint64_t>(it));
   const std::size_t n = evaluated_.cells.size();

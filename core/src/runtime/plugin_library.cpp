@@ -200,6 +200,9 @@ Opened open_checked(const fs::path& path, Rejection& seen) {
     if (!own.insert(c.name).second)
       throw PluginError(where + ": component name '" + std::string(c.name) + "' is registered twice by this plugin");
     if (c.param_count > 0 && !c.params) throw PluginError(where + ": component '" + c.name + "' has no parameter list");
+    if (c.default_descriptor && (c.kind != Kind::kEnvironment || !*c.default_descriptor))
+      throw PluginError(where + ": component '" + c.name +
+                        "' declares an empty default descriptor or is no environment");
     for (std::uint32_t k = 0; k < c.param_count; ++k)
       if (!c.params[k].key || !c.params[k].default_value)
         throw PluginError(where + ": component '" + c.name + "' declares a parameter without a name or default");

@@ -79,6 +79,7 @@ std::string describe_declarations(const PluginInfo& info) {
     put_u32(out, c.flags);
     put_text(out, c.name);
     put_text(out, c.summary);
+    put_text(out, c.default_descriptor);
     put_u32(out, c.param_count);
     for (std::uint32_t k = 0; k < c.param_count; ++k) {
       const ParamSpec& p = c.params[k];
@@ -109,6 +110,7 @@ std::shared_ptr<ProbeCopy> read_declarations(MessageReader& in) {
     c.flags = in.number<std::uint32_t>();
     c.name = in.text(copy->strings);
     c.summary = in.text(copy->strings);
+    c.default_descriptor = in.text(copy->strings);
     c.param_count = in.number<std::uint32_t>();
     if (c.param_count > 100000) throw std::runtime_error("implausible parameter count");
     auto& params = copy->params.emplace_back(c.param_count);
