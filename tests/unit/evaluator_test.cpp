@@ -399,9 +399,9 @@ TEST(Evaluator, PersistentWorldsNeedTheThreadsBackend) {
   const PolicyShape shape(6, {4}, 3);
   runtime::EvaluatorSpec spec;
   spec.labels.environment = "environment 'history'";
-  spec.backend = "auto";
+  spec.backend = runtime::Backend::kAuto;
   EXPECT_STREQ(runtime::make_evaluator(spec, env, desc, shape)->backend(), "threads");
-  spec.backend = "processes";
+  spec.backend = runtime::Backend::kProcesses;
   try {
     runtime::make_evaluator(spec, env, desc, shape);
     FAIL() << "processes accepted";

@@ -4,6 +4,8 @@
 // on, never a string compared later. Component tables are resolved in experiment.hpp.
 #pragma once
 
+#include "runtime/backend.hpp"
+
 #include <qd/config.hpp>
 #include <qd/plugin.hpp>
 
@@ -25,12 +27,9 @@ enum class DatasetOrder {
   kReference,  // "reference": descending cell index (the reference's np.unique order)
   kInsertion,  // "insertion": first found first
 };
-// [evaluation] backend.
-enum class Backend { kAuto, kThreads, kProcesses, kMpi };
 // The value as written in an experiment file ("coin-flip", "processes", ...).
 const char* to_string(InsertionRule v);
 const char* to_string(DatasetOrder v);
-const char* to_string(Backend v);
 
 // The core's own settings, resolved.
 struct ExperimentSettings {

@@ -27,7 +27,7 @@ class TimedEvaluator final : public Evaluator {
  public:
   TimedEvaluator(const ExperimentSettings& s, const Components& c) {
     EvaluatorSpec spec;
-    spec.backend = "processes";
+    spec.backend = Backend::kProcesses;
     spec.workers = 1;
     spec.capacity = static_cast<std::size_t>(s.initial_samples);
     spec.timeout_seconds = s.timeout_seconds;

@@ -12,6 +12,8 @@
 // identical results.
 #pragma once
 
+#include "runtime/backend.hpp"
+
 #include <qd/descriptor.hpp>
 #include <qd/environment.hpp>
 #include <qd/errors.hpp>
@@ -77,12 +79,12 @@ class Evaluator {
 };
 
 struct EvaluatorSpec {
-  std::string backend = "auto";  // auto | threads | processes | mpi
-  int workers = 1;               // local workers (threads/processes); MPI uses one per rank
-  std::size_t capacity = 0;      // largest batch (rows) the process backend must hold
-  double timeout_seconds = 0;    // a worker process silent this long in a batch is hung (0 = never); an MPI
-                                 // rank, twice this plus 5 s (its own worker process is timed first)
-  std::string status_file;       // written by the MPI backend when mpirun terminates the job
+  Backend backend = Backend::kAuto;
+  int workers = 1;             // local workers (threads/processes); MPI uses one per rank
+  std::size_t capacity = 0;    // largest batch (rows) the process backend must hold
+  double timeout_seconds = 0;  // a worker process silent this long in a batch is hung (0 = never); an MPI
+                               // rank, twice this plus 5 s (its own worker process is timed first)
+  std::string status_file;     // written by the MPI backend when mpirun terminates the job
   PluginLabels labels;
   bool fresh_worlds = false;  // every episode in a fresh world, even where the environment keeps
                               // persistent ones (the dry-run's pilot): any backend may run them
@@ -93,7 +95,7 @@ struct EvaluatorSpec {
 // that owns the run directory (and they are faster than threads for Box2D on this machine).
 // "threads" runs rollouts inside qdrun (with one worker: serially, unsupervised). An environment
 // with persistent worlds runs only with "threads" ("auto" resolves to it; `persistent_worlds` > 0).
-std::string resolve_backend(const std::string& requested, int persistent_worlds = 0);
+Backend resolve_backend(Backend requested, int persistent_worlds = 0);
 std::unique_ptr<Evaluator> make_evaluator(const EvaluatorSpec& spec, const Environment& env, const Descriptor& desc,
                                           const PolicyShape& shape);
 

@@ -8,22 +8,22 @@
 
 namespace qd::runtime {
 
-std::string resolve_backend(const std::string& requested, int persistent_worlds) {
-  if (requested != "auto") return requested;
-  if (persistent_worlds > 0) return "threads";
-  return mpi_active() ? "mpi" : "processes";
+Backend resolve_backend(Backend requested, int persistent_worlds) {
+  if (requested != Backend::kAuto) return requested;
+  if (persistent_worlds > 0) return Backend::kThreads;
+  return mpi_active() ? Backend::kMpi : Backend::kProcesses;
 }
 
 std::unique_ptr<Evaluator> make_evaluator(const EvaluatorSpec& spec, const Environment& env, const Descriptor& desc,
                                           const PolicyShape& shape) {
   const int worlds = spec.fresh_worlds ? 0 : env.info().persistent_worlds;
-  const std::string backend = resolve_backend(spec.backend, worlds);
-  if (worlds > 0 && backend != "threads")
-    throw InputError("[evaluation] backend = \"" + backend + "\": " + spec.labels.environment + " keeps " +
-                     std::to_string(worlds) +
+  const Backend backend = resolve_backend(spec.backend, worlds);
+  if (worlds > 0 && backend != Backend::kThreads)
+    throw InputError(std::string("[evaluation] backend = \"") + to_string(backend) + "\": " + spec.labels.environment +
+                     " keeps " + std::to_string(worlds) +
                      " persistent worlds between episodes (one state per world, in episode order), which only "
                      "the \"threads\" backend runs; use backend = \"threads\" or \"auto\"");
-  if (backend == "mpi") {
+  if (backend == Backend::kMpi) {
     if (!mpi_built())
       throw InputError(
           "[evaluation] backend = \"mpi\": this qdrun was built without MPI (configure with -DQD_WITH_MPI=ON)");
@@ -32,9 +32,10 @@ std::unique_ptr<Evaluator> make_evaluator(const EvaluatorSpec& spec, const Envir
     return make_mpi_evaluator(spec, env, desc, shape);
   }
   if (mpi_active() && mpi_size() > 1)
-    throw InputError("[evaluation] backend = \"" + backend + "\" under mpirun with " + std::to_string(mpi_size()) +
+    throw InputError(std::string("[evaluation] backend = \"") + to_string(backend) + "\" under mpirun with " +
+                     std::to_string(mpi_size()) +
                      " ranks: every rank would run the whole experiment; use backend = \"mpi\" (or \"auto\")");
-  if (backend == "processes")
+  if (backend == Backend::kProcesses)
     return std::make_unique<ProcessEvaluator>(env, desc, shape, spec.workers, spec.capacity, spec.timeout_seconds,
                                               spec.labels);
   return std::make_unique<ThreadEvaluator>(env, desc, shape, spec.workers, spec.labels, worlds);

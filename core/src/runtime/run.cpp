@@ -102,7 +102,7 @@ std::unique_ptr<Evaluator> make_run_evaluator(const Experiment& ex, const Compon
   check_memory(s, c);
   EvaluatorSpec spec;
   spec.workers = opt.workers > 0 ? opt.workers : (s.workers > 0 ? s.workers : hardware_workers());
-  spec.backend = opt.backend.empty() ? to_string(s.backend) : opt.backend;
+  spec.backend = s.backend;
   spec.capacity = static_cast<std::size_t>(std::max(s.batch, s.initial_samples));
   spec.timeout_seconds = s.timeout_seconds;
   spec.status_file = (dir / "status").string();

@@ -44,7 +44,6 @@ void tune_allocator();
 
 struct RunOptions {
   int workers = 0;           // 0 = from the experiment (then all cores)
-  std::string backend;       // empty = from the experiment
   int stop_after_loop = -1;  // stop cleanly after this loop's checkpoint (-1 = run to the end)
   std::string directory;     // run directory; empty = <output>/<name>/seed-<seed>
   std::string command_line;
