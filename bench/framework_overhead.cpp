@@ -229,7 +229,7 @@ int main(int argc, char** argv) {
     std::printf(
         "experiment=%s params=%zu evaluations=%llu workers=%d backend=%s same_policies=%d "
         "bare_us_per_step=%.3f\n",
-        argv[1], params_count, static_cast<unsigned long long>(total), workers, ex.settings.backend.c_str(),
+        argv[1], params_count, static_cast<unsigned long long>(total), workers, to_string(ex.settings.backend),
         same_policies ? 1 : 0, 1e6 * best_bare / static_cast<double>(bare_steps));
     if (whole) {
       std::printf(

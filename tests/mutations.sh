@@ -15,11 +15,11 @@ trap restore EXIT
 
 # name | file | perl substitution (must match) | ctest regex of the tests that should catch it
 mutations=(
-  "always replace|core/src/runtime/map_elites.cpp|s/replace = coin\.uniform\(\) < s_\.replace_probability;/replace = true;/|MapElitesLoop|golden"
-  "never replace|core/src/runtime/map_elites.cpp|s/replace = coin\.uniform\(\) < s_\.replace_probability;/replace = false;/|MapElitesLoop|golden"
-  "fitness rule not strict|core/src/runtime/map_elites.cpp|s/evaluated_\.fitness\[k\] > archive_/evaluated_.fitness[k] >= archive_/|MapElitesLoop|golden"
+  "always replace|core/src/runtime/map_elites.cpp|s/replace = by_fitness \? r\.fitness > r\.previous : coin\.uniform\(\) < s_\.replace_probability;/replace = by_fitness ? r.fitness > r.previous : true;/|MapElitesLoop|golden"
+  "never replace|core/src/runtime/map_elites.cpp|s/replace = by_fitness \? r\.fitness > r\.previous : coin\.uniform\(\) < s_\.replace_probability;/replace = by_fitness ? r.fitness > r.previous : false;/|MapElitesLoop|golden"
+  "fitness rule not strict|core/src/runtime/map_elites.cpp|s/replace = by_fitness \? r\.fitness > r\.previous/replace = by_fitness ? r.fitness >= r.previous/|MapElitesLoop|golden"
   "no dataset growth|core/src/runtime/map_elites.cpp|s/dataset_\.add\(archive_\.params\(static_cast<std::size_t>\(archive_\.slot_of\(cell\)\)\), cell, loop\);/(void)cell;/|MapElitesLoop|golden"
-  "selection with replacement|core/src/runtime/archive.cpp|s/if \(m >= n\) \{/if (false) {/|MapElitesLoop|golden"
+  "selection with replacement|core/src/runtime/grid_archive.cpp|s/if \(m >= n\) \{/if (false) {/|MapElitesLoop|golden"
   "threshold = median|plugins/poms/poms.cpp|s/threshold_ = ctx\.archive->mean_recn_error\(\);/{ std::vector<double> e; for (std::size_t k = 0; k < ctx.archive->size(); ++k) e.push_back(ctx.archive->recn_error(k)); std::sort(e.begin(), e.end()); threshold_ = e.empty() ? 0.0 : e[e.size() \/ 2]; }/|PomsTest|golden"
   "Jacobian transposed in the latent step|core/src/interfaces.cpp|s/= v\.row\(i\) \* jac\[static_cast<std::size_t>\(i\)\];/= v.row(i) * jac[static_cast<std::size_t>(i)].transpose();/|PomsTest"
   "mixing ratio over the latent offspring|plugins/poms/poms.cpp|s/static_cast<double>\(high\.size\(\)\) \/ static_cast<double>\(count\)/static_cast<double>(high.size()) \/ static_cast<double>(count - high.size())/|PomsTest|golden"

@@ -7,14 +7,18 @@
 // (disk full, a file size limit, no memory, no process or thread, stdout lost); 128 + signal:
 // stopped by a stop signal (SIGHUP 129, SIGINT 130, SIGTERM 143, ...), or plugin code crashed in
 // qdrun's own process (SIGSEGV 139, SIGABRT 134).
+#include "cli.hpp"
+#include "describe.hpp"
+#include "inspect.hpp"
+#include "plugin_hints.hpp"
 #include "progress.hpp"
 #include "run_guard.hpp"
 #include "runtime/components.hpp"
-#include "runtime/csv.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/registry.hpp"
 #include "runtime/replay.hpp"
 #include "runtime/run.hpp"
+#include "runtime/run_files.hpp"
 #include "sweep.hpp"
 
 #include <qd/errors.hpp>
@@ -39,162 +43,15 @@ namespace po = boost::program_options;
 namespace fs = std::filesystem;
 using namespace qd;
 using namespace qd::runtime;
+using namespace qd::app;
 
 namespace {
 
 constexpr int kExitOk = 0, kExitFailure = 1, kExitBadInput = 2, kExitWorkerFailure = 3, kExitSystem = 4;
 
-struct Cli {
-  std::vector<std::string> experiments;
-  std::vector<std::string> sets;
-  std::vector<std::string> plugin_paths;
-  std::string output, resume, describe, replay, svg, backend;
-  long long cell = -1;
-  bool cell_given = false;
-  std::string seed;
-  bool seed_given = false;  // else the experiment's
-  int workers = 0;
-  int stop_after_loop = -1;
-  bool quiet = false, list = false, version = false;
-  // Sweeps (several files and/or --seeds), replay of all elites, latent codes.
-  std::string seeds, traces, latents;
-  std::string planned_config;  // from a sweep: the checksum of the configuration it planned
-  std::vector<std::string> optional_sets;
-  long long evaluations = -1;
-  int jobs = 0;
-  bool all = false, dry_run = false;
-};
-
-std::vector<std::string> split_path_list(const char* text) {
-  std::vector<std::string> out;
-  if (!text) return out;
-  std::string s = text;
-  for (std::size_t pos = 0;;) {
-    const std::size_t c = s.find(':', pos);
-    const std::string part = s.substr(pos, c == std::string::npos ? std::string::npos : c - pos);
-    if (!part.empty()) out.push_back(part);
-    if (c == std::string::npos) break;
-    pos = c + 1;
-  }
-  return out;
-}
-
-// Why `dir` is no directory to search ("does not exist", "is a file", ...); empty when it is one.
-std::string not_a_directory(const std::string& dir) {
-  std::error_code ec;
-  const fs::file_status st = fs::status(dir, ec);
-  if (fs::is_directory(st)) return "";
-  if (ec && ec != std::errc::no_such_file_or_directory) return "cannot be read (" + ec.message() + ")";
-  if (!fs::exists(st)) return "does not exist";
-  return "is not a directory";
-}
-
-// Search order, first hit wins: --plugin-path, QD_PLUGIN_PATH, [plugins] path, the directories a
-// run directory's config.toml recorded ([plugins] search_path, for --resume and friends), then
-// qdrun's own plugin directory (<prefix>/lib/qd/plugins; the build tree's only for the qdrun that
-// runs from it). Shadowed component names are reported on stderr.
-void setup_registry(Registry& reg, const Cli& cli, const std::vector<std::string>& from_file,
-                    const std::vector<std::string>& recorded = {}) {
-  // A directory the user names that is not there is a typo or a stale path: --plugin-path is an
-  // error (check_options), the others are said once.
-  auto warn_missing = [&](const std::string& dir, const std::string& from) {
-    if (const std::string why = not_a_directory(dir); !cli.quiet && !why.empty())
-      std::fprintf(stderr, "qdrun: warning: plugin directory %s (%s) %s\n", dir.c_str(), from.c_str(), why.c_str());
-  };
-  for (const auto& p : cli.plugin_paths) reg.add_search_dir(p);
-  for (const auto& p : split_path_list(std::getenv("QD_PLUGIN_PATH"))) {
-    warn_missing(p, "QD_PLUGIN_PATH");
-    reg.add_search_dir(p);
-  }
-  for (const auto& p : from_file) {
-    warn_missing(p, "[plugins] path");
-    reg.add_search_dir(p);
-  }
-  for (const auto& p : recorded) reg.add_search_dir(p);
-  reg.add_search_dir(installed_plugin_dir(), DirOrigin::kOwn);
-  reg.add_search_dir(build_tree_plugin_dir(), DirOrigin::kOwn);
-  reg.discover();
-  if (!cli.quiet)
-    for (const auto& w : reg.warnings()) std::fprintf(stderr, "qdrun: warning: %s\n", w.c_str());
-}
-
-int list_components(const Registry& reg) {
-  for (Kind kind : {Kind::kEnvironment, Kind::kDescriptor, Kind::kRepresentation, Kind::kMutator}) {
-    std::printf("%ss:\n", to_string(kind));
-    for (const auto& c : reg.components()) {
-      if (c.info->kind != kind) continue;
-      std::printf("  %-20s %s\n  %-20s   (plugin %s %s, %s)\n", c.info->name, c.info->summary ? c.info->summary : "",
-                  "", c.plugin->info->plugin_name, c.plugin->info->plugin_version, c.plugin->path.c_str());
-    }
-  }
-  if (!reg.rejected().empty()) {
-    std::printf("rejected libraries:\n");
-    for (const auto& r : reg.rejected()) std::printf("  %s\n", r.reason.c_str());
-  }
-  std::printf("plugin search path:\n");
-  for (const auto& d : reg.search_dirs()) std::printf("  %s\n", d.c_str());
-  return kExitOk;
-}
-
-int describe(const Registry& reg, const std::string& name) {
-  for (const auto& t : core_tables()) {
-    if (name == t.name) {
-      std::printf("[%s] (core)\n%s", t.name, describe_params(t.params, t.count).c_str());
-      return kExitOk;
-    }
-  }
-  if (const std::string text = describe_table(name, reg); !text.empty()) {
-    std::printf("%s", text.c_str());
-    return kExitOk;
-  }
-  const ComponentEntry* e = reg.find(name);
-  if (!e) {
-    std::string known;
-    for (const auto& t : core_tables()) known += std::string(known.empty() ? "" : ", ") + t.name;
-    for (const char* t : {"plugins", "environment", "descriptor", "representation", "mutator", "initial"})
-      known += ", " + std::string(t);
-    for (const auto& c : reg.components()) known += ", " + std::string(c.info->name);
-    throw InputError("--describe: unknown component or table '" + name + "'; known: " + known);
-  }
-  std::printf("%s '%s': %s\n  plugin %s %s (%s)\nparameters (besides type = \"%s\"):\n%s", to_string(e->info->kind),
-              e->info->name, e->info->summary ? e->info->summary : "", e->plugin->info->plugin_name,
-              e->plugin->info->plugin_version, e->plugin->path.c_str(), e->info->name,
-              describe_params(e->info->params, e->info->param_count).c_str());
-  return kExitOk;
-}
-
-// Runs `build` (resolving a run directory's configuration and building its components); when a
-// component cannot be found, the error also says which library the run used and where it was.
-template <class F>
-auto with_plugin_hint(const fs::path& dir, const Registry& reg, F&& build) -> decltype(build()) {
-  try {
-    return build();
-  } catch (const InputError& e) {
-    const std::string hint = missing_plugin_hint(dir, reg);
-    if (hint.empty()) throw;
-    std::string msg = e.what();
-    const auto first_line_end = msg.find('\n');
-    msg.insert(first_line_end == std::string::npos ? msg.size() : first_line_end, "; " + hint);
-    throw InputError(msg);
-  }
-}
-
 void print_notes(const Cli& cli, const Experiment& ex) {
   if (cli.quiet) return;
   for (const auto& n : ex.notes) std::fprintf(stderr, "qdrun: note: %s\n", n.c_str());
-}
-
-// A run continues (or is replayed) with the plugins it was made with: when the library it used is
-// gone and another one provides the same component name, that is an error naming both, not a
-// silent switch.
-void check_same_plugins(const Cli& cli, const Run& run) {
-  std::vector<std::string> notes;
-  const std::string changed = changed_plugins(run.directory(), run.experiment(), &notes);
-  if (!changed.empty())
-    throw InputError(run.directory().string() + ": cannot use the plugins this run was made with: " + changed +
-                     "; restore the library or add its directory with --plugin-path");
-  if (!cli.quiet)
-    for (const auto& n : notes) std::fprintf(stderr, "qdrun: note: %s\n", n.c_str());
 }
 
 int run_one(const Cli& cli, const std::string& command_line) {
@@ -262,7 +119,7 @@ int run_one(const Cli& cli, const std::string& command_line) {
     ~EndOfRun() { app::end_of_run(); }
   } end_of_run;
   if (!cli.resume.empty()) {
-    check_same_plugins(cli, run);
+    check_same_plugins(cli.quiet, run);
     run.open_for_resume();
   } else {
     run.create_directory();
@@ -309,114 +166,6 @@ int run_one(const Cli& cli, const std::string& command_line) {
     if (dynamic_cast<const SystemError*>(&e)) throw SystemError(std::string(e.what()) + "; " + next);
     throw;
   }
-  return kExitOk;
-}
-
-int replay_all(const Cli& cli);
-
-// Builds the run of an existing run directory from its own config.toml (for --replay, --latents).
-void require_run_directory(const fs::path& dir) {
-  if (!fs::exists(dir / "config.toml")) throw InputError(dir.string() + ": not a run directory (no config.toml)");
-}
-
-std::unique_ptr<Run> open_run_directory(const Cli& cli, const fs::path& dir, Registry& reg, int workers) {
-  require_run_directory(dir);
-  Document doc = Document::read(dir / "config.toml");
-  setup_registry(reg, cli, doc.plugin_paths(), doc.recorded_search_path());
-  RunOptions opt;
-  opt.directory = dir.string();
-  opt.workers = workers;
-  auto run = with_plugin_hint(dir, reg, [&] { return std::make_unique<Run>(resolve(doc, reg), reg, std::move(opt)); });
-  check_same_plugins(cli, *run);
-  return run;
-}
-
-// What --replay and --latents write goes beside a run, never over one of its own files (the run
-// could no longer be resumed): in the run directory only their own outputs or new names.
-void check_output_beside_run(const fs::path& out, const fs::path& dir, const std::string& option) {
-  require_run_directory(dir);
-  try {
-    require_replaceable(out);  // before the replay: never a device or FIFO swapped for a file
-  } catch (const InputError& e) {
-    throw InputError(option + " " + out.string() + ": " + e.what());
-  }
-  std::error_code ec;
-  const fs::path parent = fs::weakly_canonical(fs::absolute(out, ec).parent_path(), ec);
-  if (!fs::is_directory(parent, ec))
-    throw InputError(option + " " + out.string() + ": the directory " + parent.string() + " does not exist");
-  const fs::path run = fs::weakly_canonical(fs::absolute(dir, ec), ec);
-  if (!fs::equivalent(parent, run, ec) && !fs::equivalent(parent, run / "archive", ec)) return;
-  const std::string name = out.filename().string();
-  const bool replay_output =
-      name == "traces.csv" || name == "latents.csv" || (name.rfind("replay-", 0) == 0 && out.extension() == ".svg");
-  bool run_file = fs::equivalent(parent, run / "archive", ec) || name.rfind("provenance", 0) == 0 ||
-                  name.rfind("archive-state-", 0) == 0 || name.rfind("checkpoint.bin", 0) == 0;
-  for (const char* f : {"config.toml", "grid.toml", "metrics.csv", "training.csv", "losses.csv", "pca.csv",
-                        "archive.csv", "dataset.bin", "status", "lock", "qdrun.log", "fault-offspring.csv"})
-    run_file = run_file || name == f;
-  if (run_file || (!replay_output && exists_nofollow(out)))
-    throw InputError(option + " " + out.string() + ": that is a file of the run " + dir.string() +
-                     " itself; write the output elsewhere (replay and latents never change a run)");
-}
-
-// Replays run every episode in a fresh world (RolloutBatch::world = -1).
-void note_fresh_worlds(const Run& run) {
-  const int worlds = run.components().environment->info().persistent_worlds;
-  if (worlds > 0)
-    std::printf(
-        "note: this environment keeps %d persistent worlds during a run (%s); a replay runs in a fresh world, "
-        "so a trace can differ from the run's episode\n",
-        worlds, run.components().environment_label.c_str());
-}
-
-int replay(const Cli& cli) {
-  if (cli.all) return replay_all(cli);
-  if (!cli.cell_given) throw InputError("--replay needs --cell N (an index from archive.csv)");
-  if (cli.cell < 0)
-    throw InputError("--cell " + std::to_string(cli.cell) + ": a cell index is >= 0 (column 'index' of archive.csv)");
-  const fs::path dir = cli.replay;
-  const fs::path svg = cli.svg.empty() ? dir / ("replay-cell-" + std::to_string(cli.cell) + ".svg") : fs::path(cli.svg);
-  check_output_beside_run(svg, dir, "--svg");
-  Registry reg;
-  const std::unique_ptr<Run> run = open_run_directory(cli, dir, reg, 1);
-  const Trace t = replay_elite(*run, cli.cell, svg);
-  std::int64_t cell = -1;
-  const Descriptor& descriptor = *run->components().descriptor;
-  std::vector<double> values(descriptor.grid().dims());
-  if (t.status == EvalStatus::kOk) descriptor.describe(&t, 1, &cell, values.data());
-  std::printf("replayed cell %lld: %s, %d steps, lands in cell %lld%s\nwrote %s\n", cli.cell, to_string(t.status),
-              t.steps, static_cast<long long>(cell),
-              cell == cli.cell ? " (as stored)" : " (differs from the stored cell)", svg.c_str());
-  note_fresh_worlds(*run);
-  return kExitOk;
-}
-
-// qdrun --replay RUN_DIR --all [--traces FILE.csv]: every elite's trajectory, for qdplot.
-int replay_all(const Cli& cli) {
-  if (cli.cell_given || !cli.svg.empty()) throw InputError("--replay --all takes no --cell or --svg (see --traces)");
-  const fs::path dir = cli.replay;
-  const fs::path csv = cli.traces.empty() ? dir / "traces.csv" : fs::path(cli.traces);
-  check_output_beside_run(csv, dir, "--traces");
-  Registry reg;
-  const std::unique_ptr<Run> run = open_run_directory(cli, dir, reg, cli.workers);
-  const ReplayAllResult r = replay_all(*run, run->workers(), csv);
-  std::printf("replayed %zu elites, %zu land in their stored cell\nwrote %s\n", r.elites, r.as_stored, csv.c_str());
-  note_fresh_worlds(*run);
-  return kExitOk;
-}
-
-// qdrun --latents RUN_DIR [--output FILE.csv]: the dataset's latent codes under the checkpoint's
-// representation, with their cells (for qdplot's latent-space figure). Reads the run, writes nothing in it
-// unless FILE is there.
-int latents(const Cli& cli) {
-  const fs::path dir = cli.latents;
-  const fs::path csv = cli.output.empty() ? dir / "latents.csv" : fs::path(cli.output);
-  check_output_beside_run(csv, dir, "--output");
-  Registry reg;
-  const std::unique_ptr<Run> run = open_run_directory(cli, dir, reg, 1);
-  run->open_for_inspection();
-  write_latents(*run, csv);
-  std::printf("wrote the latent codes of %zu dataset entries to %s\n", run->dataset().size(), csv.c_str());
   return kExitOk;
 }
 
@@ -548,7 +297,11 @@ int qdrun_main(int argc, char** argv) {
         recorded = doc.recorded_search_path();
       }
       setup_registry(reg, cli, from_file, recorded);
-      return cli.list ? list_components(reg) : describe(reg, cli.describe);
+      if (cli.list)
+        list_components(reg);
+      else
+        describe(reg, cli.describe);
+      return kExitOk;
     }
     if (!cli.replay.empty()) return replay(cli);
     if (!cli.latents.empty()) return latents(cli);

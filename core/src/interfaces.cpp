@@ -5,6 +5,7 @@
 #include <qd/environment.hpp>
 #include <qd/errors.hpp>
 #include <qd/mutator.hpp>
+#include <qd/planning.hpp>
 #include <qd/plugin.hpp>
 #include <qd/representation.hpp>
 
@@ -67,13 +68,7 @@ double ArchiveView::mean_recn_error() const {
   return n == 0 ? 0.0 : sum / static_cast<double>(n);
 }
 
-std::vector<std::string> Representation::log_files() const {
-  return {};
-}
-
-std::vector<double> Representation::estimate_fit_seconds(const std::vector<std::size_t>& rows) const {
-  return std::vector<double>(rows.size(), 0.0);
-}
+FitTimeEstimate::~FitTimeEstimate() = default;
 
 const char* to_string(Outcome outcome) noexcept {
   switch (outcome) {
@@ -100,7 +95,6 @@ void Offspring::reset(std::size_t count, std::size_t params, std::size_t latent_
   theta.resize(static_cast<Eigen::Index>(count), static_cast<Eigen::Index>(params));
   latent.resize(static_cast<Eigen::Index>(latent_size ? count : 0), static_cast<Eigen::Index>(latent_size));
   has_latent.assign(count, 0);
-  mixing_ratio = std::nan("");
   metrics.clear();
 }
 

@@ -17,7 +17,7 @@ ArmEnvironment::ArmEnvironment(const Config& cfg, const BuildContext&)
       angle_variance_(cfg.get_string("fitness") == "angle-variance") {}
 
 EnvironmentInfo ArmEnvironment::info() const {
-  EnvironmentInfo info{joints_ + 3, joints_, steps_, "arm-endpoint"};
+  EnvironmentInfo info{joints_ + 3, joints_, steps_};
   info.has_fitness = true;
   // Each step moves a joint by at most dt and adds at most `joints` to the effort, so no policy
   // does worse than these.

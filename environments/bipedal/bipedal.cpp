@@ -681,7 +681,6 @@ EnvironmentInfo BipedalEnvironment::info() const {
   info.observation_size = observation_size(options_.task);
   info.action_size = kActionSize;
   info.max_steps = options_.max_steps;
-  info.default_descriptor = options_.task == Task::kWalker ? "walker-gait" : "kicker-ball";
   info.persistent_worlds = static_cast<int>(ghost_worlds_.size());
   return info;
 }

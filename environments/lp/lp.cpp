@@ -34,7 +34,6 @@ LpEnvironment::LpEnvironment(Function f, const Config& cfg, const BuildContext&)
 EnvironmentInfo LpEnvironment::info() const {
   EnvironmentInfo info;
   info.max_steps = 1;
-  info.default_descriptor = "lp-measures";
   info.has_fitness = true;
   // No finite lower bound (the normalised fitness falls below 0 far outside [-5.12, 5.12]^n): the
   // experiment files give pyribs's QD-score offset, 0.

@@ -46,7 +46,6 @@ EnvironmentInfo StrikerEnvironment::info() const {
   info.observation_size = kObservationSize;
   info.action_size = kActionSize;
   info.max_steps = options_.max_steps;
-  info.default_descriptor = "striker-contacts";
   return info;
 }
 

@@ -52,7 +52,7 @@ class CartBall final : public qd::Environment {
   // Fitness: the ball's highest point (metrics.csv's max_fitness and mean_fitness; no lower bound is
   // declared, so qd_score stays empty unless the experiment file gives [experiment] fitness_lower_bound).
   qd::EnvironmentInfo info() const override {
-    qd::EnvironmentInfo info{7, 2, steps_, "cart-ball-landing"};
+    qd::EnvironmentInfo info{7, 2, steps_};
     info.has_fitness = true;
     return info;
   }

@@ -12,6 +12,7 @@ inline constexpr qd::ParamSpec kParams[] = {
 class HalfStep final : public qd::Mutator {
  public:
   HalfStep(const qd::Config& c, const qd::BuildContext&) : step_(c.get_float("step")) {}
+  std::vector<std::string> metric_names() const override { return {qd::kMixingRatio}; }
   void mutate(const qd::Parents& p, std::size_t count, qd::MutateContext& ctx, qd::Offspring& out) override {
     out.theta = p.theta;
     for (std::size_t i = 0; i < count; ++i)
@@ -20,7 +21,7 @@ class HalfStep final : public qd::Mutator {
         auto& v = out.theta(static_cast<Eigen::Index>(i), k);
         v += step_ * (target - v);
       }
-    out.mixing_ratio = 1.0;
+    out.metrics = {1.0};  // mixing ratio: all made in parameter space
   }
 
  private:

@@ -9,8 +9,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
-#include <fstream>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -178,16 +176,9 @@ class Network final : public Model {
     const Mat x_test = gather(all, split.test);
     const bool has_test = x_test.rows() > 0;
 
-    std::ofstream log;
-    std::filesystem::path log_path;
-    if (!ctx.run_dir.empty()) {
-      log_path = std::filesystem::path(ctx.run_dir) / kLossesFile;
-      const bool fresh = !std::filesystem::exists(log_path);
-      log.open(log_path, std::ios::app);
-      if (!log) throw SystemError("autoencoder: cannot open " + log_path.string());
-      if (fresh && !(log << "loop,epoch,train_loss,test_loss\n" << std::flush))
-        throw SystemError("autoencoder: cannot write " + log_path.string());
-    }
+    // The losses file gets its header even before the first epoch (the core writes it once).
+    constexpr const char* kHeader = "loop,epoch,train_loss,test_loss\n";
+    if (ctx.log) ctx.log->append(kLossesFile, kHeader, "");
 
     const Eigen::Index n_train = x_train.rows();
     std::vector<Eigen::Index> order(static_cast<std::size_t>(n_train));
@@ -214,13 +205,12 @@ class Network final : public Model {
         report.test_loss = mean_sse(x_test, threads);
         test_losses.push_back(report.test_loss);
       }
-      if (log.is_open()) {
+      if (ctx.log) {
         if (has_test)
           std::snprintf(line, sizeof line, "%d,%d,%.9g,%.9g\n", ctx.loop, epoch, report.train_loss, report.test_loss);
         else
           std::snprintf(line, sizeof line, "%d,%d,%.9g,\n", ctx.loop, epoch, report.train_loss);
-        // A full disk must fail the run, not drop rows: every row is flushed and checked.
-        if (!(log << line << std::flush)) throw SystemError("autoencoder: cannot write " + log_path.string());
+        ctx.log->append(kLossesFile, kHeader, line);  // row by row, so the file shows the training live
       }
       if (has_test && should_stop(test_losses, epoch, hyper_.early_stop_window, hyper_.early_stop_slope)) {
         report.stopped_early = true;
@@ -628,7 +618,7 @@ std::pair<double, double> Autoencoder::time_epochs(std::size_t probe_rows, int e
     for (int probe_run = 0; probe_run < 20 && (probe_run < 3 || spent < 0.2); ++probe_run) {
       const auto model = make_model(probe, params_, 0);
       const auto start = std::chrono::steady_clock::now();
-      const FitReport report = model->fit(data, FitContext{loop, 0, ""});
+      const FitReport report = model->fit(data, FitContext{loop, 0, nullptr});
       const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       spent += elapsed;
       best = std::min(best, elapsed / (std::max(1, report.epochs) * static_cast<double>(probe_rows)));

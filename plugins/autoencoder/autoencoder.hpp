@@ -6,6 +6,7 @@
 
 #include <qd/config.hpp>
 #include <qd/dataset.hpp>
+#include <qd/planning.hpp>
 #include <qd/representation.hpp>
 #include <qd/rng.hpp>
 
@@ -104,7 +105,7 @@ class Model {
 
 std::unique_ptr<Model> make_model(const Hyper& hyper, int params, std::uint64_t seed);
 
-class Autoencoder final : public Representation {
+class Autoencoder final : public Representation, public FitTimeEstimate {
  public:
   Autoencoder(const Config& cfg, const BuildContext& ctx);
   // For tests and benchmarks that do not go through a Config.
@@ -121,7 +122,6 @@ class Autoencoder final : public Representation {
   void reconstruction_errors(const Matrix& theta, Vector& errors) const override {
     model_->reconstruction_errors(theta, errors);
   }
-  std::vector<std::string> log_files() const override { return {kLossesFile}; }
   // Times two epochs of a fresh model of this shape on random data (one thread) and scales them by
   // the rows and by the epochs each loop runs: max_epochs where there is no test set (loop 0 of the
   // reference split), early_stop_window + 2 otherwise, the fewest epochs early stopping allows and

@@ -22,7 +22,7 @@ void IsoMutator::mutate(const Parents& parents, std::size_t count, MutateContext
   QD_CHECK(static_cast<std::size_t>(parents.theta.rows()) == count, "iso mutates one offspring per parent");
   out.theta = parents.theta;
   ctx.rng->add_normal(out.theta.data(), static_cast<std::size_t>(out.theta.size()), sigma_);
-  out.mixing_ratio = 1.0;
+  out.metrics = {1.0};  // mixing ratio
 }
 
 UniformSampler::UniformSampler(const Config& cfg, const BuildContext&)

@@ -33,6 +33,7 @@ class NoRepresentation final : public Representation {
 class IsoMutator final : public Mutator {
  public:
   IsoMutator(const Config& cfg, const BuildContext&);
+  std::vector<std::string> metric_names() const override { return {kMixingRatio}; }
   void mutate(const Parents& parents, std::size_t count, MutateContext& ctx, Offspring& out) override;
 
  private:

@@ -91,8 +91,8 @@ void DdeMutator::mutate(const Parents& parents, std::size_t count, MutateContext
 
   arm_ = static_cast<int>(arm);
   pending_count_ = count;
-  out.mixing_ratio = static_cast<double>(arm) / static_cast<double>(kArmCount);  // the reference's log
-  out.metrics.assign(1, static_cast<double>(arm));
+  // The arm, and as mixing ratio arm / 9: what the reference logs in its ratio column.
+  out.metrics = {static_cast<double>(arm), static_cast<double>(arm) / static_cast<double>(kArmCount)};
 }
 
 void DdeMutator::feedback(const Feedback& fb) {

@@ -55,7 +55,7 @@ class DdeMutator final : public Mutator {
   DdeMutator(const Config& cfg, const BuildContext& ctx);
 
   bool needs_latent() const noexcept override { return true; }
-  std::vector<std::string> metric_names() const override { return {"arm"}; }
+  std::vector<std::string> metric_names() const override { return {"arm", kMixingRatio}; }
 
   void mutate(const Parents& parents, std::size_t count, MutateContext& ctx, Offspring& out) override;
   void feedback(const Feedback& fb) override;

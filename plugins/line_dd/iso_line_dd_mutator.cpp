@@ -16,7 +16,7 @@ void IsoLineDdMutator::mutate(const Parents& parents, std::size_t count, MutateC
   const int latent = ctx.representation ? ctx.representation->latent_size() : 0;
   out.reset(count, static_cast<std::size_t>(parents.theta.cols()), static_cast<std::size_t>(latent));
   iso_line_dd(parents.theta, 0, static_cast<Eigen::Index>(count), params_, *ctx.rng, out.theta);
-  out.mixing_ratio = 1.0;  // everything is made in parameter space
+  out.metrics = {1.0};  // mixing ratio: everything is made in parameter space
 }
 
 }  // namespace qd::line_dd

@@ -21,6 +21,7 @@ inline constexpr ParamSpec kIsoLineDdParams[] = {
 class IsoLineDdMutator final : public Mutator {
  public:
   IsoLineDdMutator(const Config& cfg, const BuildContext& ctx);
+  std::vector<std::string> metric_names() const override { return {kMixingRatio}; }
 
   void mutate(const Parents& parents, std::size_t count, MutateContext& ctx, Offspring& out) override;
 

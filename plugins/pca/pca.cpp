@@ -9,11 +9,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 #include <limits>
 #include <map>
 #include <mutex>
+#include <sstream>
 #include <string>
 #include <tuple>
 
@@ -207,16 +206,11 @@ FitReport PcaRepresentation::fit(const Dataset& data, const FitContext& ctx) {
   report.train_loss = errors.squaredNorm() / static_cast<double>(errors.size());
   report.test_loss = std::numeric_limits<double>::quiet_NaN();
 
-  if (!ctx.run_dir.empty()) {
-    const std::filesystem::path path = std::filesystem::path(ctx.run_dir) / "pca.csv";
-    std::error_code ec;
-    const bool fresh = !std::filesystem::exists(path, ec) || std::filesystem::file_size(path, ec) == 0;
-    std::ofstream out(path, std::ios::app);
-    if (!out) throw SystemError("pca: cannot write " + path.string());
+  if (ctx.log) {
+    std::ostringstream out;
     out.precision(std::numeric_limits<double>::max_digits10);
-    if (fresh) out << "loop,component,explained_variance_ratio\n";
     for (int k = 0; k < latent_; ++k) out << ctx.loop << ',' << k << ',' << explained_variance_ratio_(k) << '\n';
-    if (!out) throw SystemError("pca: error writing " + path.string());
+    ctx.log->append("pca.csv", "loop,component,explained_variance_ratio\n", out.str());
   }
   return report;
 }

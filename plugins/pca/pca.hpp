@@ -3,6 +3,7 @@
 #pragma once
 
 #include <qd/config.hpp>
+#include <qd/planning.hpp>
 #include <qd/representation.hpp>
 
 #include <cstddef>
@@ -12,7 +13,7 @@ namespace qd::pca {
 
 extern const ParamSpec kParams[1];
 
-class PcaRepresentation final : public Representation {
+class PcaRepresentation final : public Representation, public FitTimeEstimate {
  public:
   PcaRepresentation(const Config& cfg, const BuildContext& ctx);
   // Direct construction (tests): `latent` components of `params`-dimensional vectors.
@@ -26,7 +27,6 @@ class PcaRepresentation final : public Representation {
   void decoder_jacobians(const Matrix& z, std::vector<Matrix>& jacobians) const override;
   void decoder_vjp(const Matrix& z, const Matrix& v, Matrix& out) const override;
 
-  std::vector<std::string> log_files() const override { return {"pca.csv"}; }
   // Times fits of a fresh model on random data at the smallest and the largest row count and
   // interpolates a power law in the rows between them.
   std::vector<double> estimate_fit_seconds(const std::vector<std::size_t>& rows) const override;

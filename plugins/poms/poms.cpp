@@ -105,11 +105,8 @@ void PomsMutator::mutate(const Parents& parents, std::size_t count, MutateContex
   const int ld = rep.latent_size();
   out.reset(count, static_cast<std::size_t>(p), static_cast<std::size_t>(ld));
   out.latent.setZero();
-  out.metrics = {threshold_};
-  if (count == 0) {
-    out.mixing_ratio = 0.0;
-    return;
-  }
+  out.metrics = {threshold_, 0.0};  // threshold, mixing ratio
+  if (count == 0) return;
 
   Vector errors;
   if (mode_ == ThresholdMode::kArchiveMean) {
@@ -149,7 +146,7 @@ void PomsMutator::mutate(const Parents& parents, std::size_t count, MutateContex
     out.latent.bottomRows(n_low) = z;
     for (std::size_t i = high.size(); i < count; ++i) out.has_latent[i] = 1;
   }
-  out.mixing_ratio = static_cast<double>(high.size()) / static_cast<double>(count);
+  out.metrics[1] = static_cast<double>(high.size()) / static_cast<double>(count);
 }
 
 void PomsMutator::save(std::ostream& out) const {
@@ -198,7 +195,7 @@ void NoJacobianMutator::mutate(const Parents& parents, std::size_t count, Mutate
   QD_CHECK(latent_std_.size() == ld, "poms-no-jacobian: begin_loop must run before mutate");
   const Eigen::Index p = parents.theta.cols();
   out.reset(count, static_cast<std::size_t>(p), static_cast<std::size_t>(ld));
-  out.mixing_ratio = 0.0;  // the reference never mixes in parameter-space mutation
+  out.metrics = {0.0};  // mixing ratio: the reference never mixes in parameter-space mutation
   if (count == 0) return;
 
   Matrix z, eps(static_cast<Eigen::Index>(count), ld), decoded;

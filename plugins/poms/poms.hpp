@@ -38,7 +38,7 @@ class PomsMutator final : public Mutator {
   PomsMutator(double sigma, SigmaMeaning meaning, ThresholdMode threshold);
 
   bool needs_latent() const noexcept override { return true; }
-  std::vector<std::string> metric_names() const override { return {"threshold"}; }
+  std::vector<std::string> metric_names() const override { return {"threshold", kMixingRatio}; }
 
   void begin_loop(const LoopContext& ctx) override;
   void mutate(const Parents& parents, std::size_t count, MutateContext& ctx, Offspring& out) override;
@@ -67,6 +67,7 @@ class NoJacobianMutator final : public Mutator {
   explicit NoJacobianMutator(double scale);
 
   bool needs_latent() const noexcept override { return true; }
+  std::vector<std::string> metric_names() const override { return {kMixingRatio}; }
 
   void begin_loop(const LoopContext& ctx) override;
   void mutate(const Parents& parents, std::size_t count, MutateContext& ctx, Offspring& out) override;

@@ -16,6 +16,8 @@
     (share/qdplot, qdreport, qdresults and the qdtools package) hold no algorithm names of their own.
   * The tutorial (docs/tutorial.md) is at most 150 lines; tests/docs/tutorial.sh runs its commands.
 """
+import fnmatch
+import os
 import re
 import subprocess
 import sys
@@ -37,11 +39,16 @@ def fail(text):
 
 
 def files(root, pattern):
-    for p in sorted(root.rglob(pattern)):
-        rel = p.relative_to(root)
-        if rel.parts[0].startswith("build") or rel.parts[0] in ("runs", "out") or SKIP_DIRS & set(rel.parts):
-            continue
-        yield p
+    # Walks only the source tree: build trees, run outputs and .git are never entered, because tests
+    # running beside this check create and delete files there (rglob would walk them first and fail
+    # on a directory that vanished mid-walk).
+    found = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        top = Path(dirpath) == root
+        dirnames[:] = [d for d in dirnames
+                       if d not in SKIP_DIRS and not (top and (d.startswith("build") or d in ("runs", "out")))]
+        found += [Path(dirpath) / f for f in filenames if fnmatch.fnmatch(f, pattern)]
+    yield from sorted(found)
 
 
 def check_readme(root):

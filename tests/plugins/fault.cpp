@@ -68,7 +68,7 @@ class FaultArm final : public qd::Environment {
                                               static_cast<std::uint64_t>(c.get_int("fault_offspring") + k)));
   }
 
-  qd::EnvironmentInfo info() const override { return {kJoints + 2, kJoints, steps_, "fault-endpoint"}; }
+  qd::EnvironmentInfo info() const override { return {kJoints + 2, kJoints, steps_}; }
 
   void rollout(const qd::RolloutBatch& batch, qd::Trace* traces) const override {
     qd::Policy policy(*batch.shape);
@@ -232,8 +232,8 @@ class FaultLinear final : public qd::Representation {
 }  // namespace
 
 QD_PLUGIN("fault", "1",
-          qd::component<FaultArm>(qd::Kind::kEnvironment, "fault-arm", "A planar arm that misbehaves on purpose.",
-                                  kEnvParams),
+          qd::environment<FaultArm>("fault-arm", "A planar arm that misbehaves on purpose.", kEnvParams,
+                                    "fault-endpoint"),
           qd::component<FaultEndpoint>(qd::Kind::kDescriptor, "fault-endpoint",
                                        "fault-arm's end point; breaks its answer for a marked trace.", kDescParams),
           qd::component<FaultMutator>(qd::Kind::kMutator, "fault-mutator",

@@ -1,4 +1,4 @@
-#include "runtime/archive.hpp"
+#include "runtime/grid_archive.hpp"
 
 #include <qd/errors.hpp>
 

@@ -1,5 +1,7 @@
 // Configuration errors: each must name the place (file:line:column or --set) and the key. Also the
 // files a run writes from a resolved configuration (archive.csv).
+#include "describe.hpp"
+#include "runtime/cost_model.hpp"
 #include "runtime/experiment.hpp"
 #include "runtime/run.hpp"
 
@@ -12,6 +14,7 @@
 
 using namespace qd;
 using namespace qd::runtime;
+using qd::app::describe_table;
 namespace fs = std::filesystem;
 
 namespace {
@@ -98,12 +101,15 @@ TEST(Config, ZeroAndNegativeBudgetsAreOutOfRange) {
 
 TEST(Config, TheCostTableIsReadButIsNotPartOfTheRunsConfiguration) {
   const std::string cost = "\n[cost]\nevaluations = [0, 1000, 5000]\noffspring_time = [1.0, 1.5, 2.5]\n";
-  const Experiment with = resolve(Document::parse(kValid + cost, "exp.toml"), registry());
-  EXPECT_EQ(with.settings.cost.evaluations, (std::vector<double>{0, 1000, 5000}));
-  EXPECT_EQ(with.settings.cost.offspring_time, (std::vector<double>{1.0, 1.5, 2.5}));
+  const Document doc = Document::parse(kValid + cost, "exp.toml");
+  const Experiment with = resolve(doc, registry());
+  // Read by the planning wing only (--dry-run), not into the run's settings.
+  const CostModel model = read_cost_model(doc);
+  EXPECT_EQ(model.evaluations, (std::vector<double>{0, 1000, 5000}));
+  EXPECT_EQ(model.offspring_time, (std::vector<double>{1.0, 1.5, 2.5}));
   // A run made before the table was added, or under other values, is the same run.
   EXPECT_EQ(with.resolved_toml, resolve(Document::parse(kValid, "exp.toml"), registry()).resolved_toml);
-  EXPECT_TRUE(resolve(Document::parse(kValid, "exp.toml"), registry()).settings.cost.evaluations.empty());
+  EXPECT_TRUE(read_cost_model(Document::parse(kValid, "exp.toml")).evaluations.empty());
 }
 
 TEST(Config, AMalformedCostTableNamesTheKey) {
@@ -315,6 +321,103 @@ TEST(Config, MissingFile) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent/exp.toml: no such experiment file"), std::string::npos);
   }
+}
+
+// Settings that select a behaviour are enums from validation on; an unknown word is refused at its
+// place, with the key and the words it may be.
+TEST(Config, BehaviourSettingsAreTypedOnceAndRefuseUnknownWords) {
+  const std::string text = replace(kValid, "initial_samples = 10",
+                                   "initial_samples = 10\ninsertion = \"fitness\"\ndataset_order = \"insertion\"") +
+                           "\n[evaluation]\nbackend = \"threads\"\n";
+  const Experiment ex = resolve(Document::parse(text, "exp.toml"), registry());
+  EXPECT_EQ(ex.settings.insertion, InsertionRule::kFitness);
+  EXPECT_EQ(ex.settings.dataset_order, DatasetOrder::kInsertion);
+  EXPECT_EQ(ex.settings.backend, Backend::kThreads);
+  // The defaults, and the words the enums stand for are the schema's choices, in order.
+  const Experiment d = resolve(Document::parse(kValid, "exp.toml"), registry());
+  EXPECT_EQ(d.settings.insertion, InsertionRule::kCoinFlip);
+  EXPECT_EQ(d.settings.dataset_order, DatasetOrder::kReference);
+  EXPECT_EQ(d.settings.backend, Backend::kAuto);
+  auto choices = [](const char* table, const char* key) {
+    for (const CoreTable& t : core_tables())
+      for (std::size_t i = 0; t.name == std::string(table) && i < t.count; ++i)
+        if (t.params[i].key == std::string(key)) return std::string(t.params[i].choices);
+    return std::string();
+  };
+  EXPECT_EQ(choices("experiment", "insertion"),
+            std::string(to_string(InsertionRule::kCoinFlip)) + "|" + to_string(InsertionRule::kFitness));
+  EXPECT_EQ(choices("experiment", "dataset_order"),
+            std::string(to_string(DatasetOrder::kReference)) + "|" + to_string(DatasetOrder::kInsertion));
+  EXPECT_EQ(choices("evaluation", "backend"), std::string(to_string(Backend::kAuto)) + "|" +
+                                                  to_string(Backend::kThreads) + "|" + to_string(Backend::kProcesses) +
+                                                  "|" + to_string(Backend::kMpi));
+
+  const std::string msg =
+      error_of(replace(kValid, "initial_samples = 10", "initial_samples = 10\ninsertion = \"fitnes\""));
+  EXPECT_NE(msg.find("exp.toml:8:13: experiment.insertion = \"fitnes\" is not one of: coin-flip, fitness (did you "
+                     "mean 'fitness'?)"),
+            std::string::npos)
+      << msg;
+  const std::string set = error_of(kValid, {"evaluation.backend=thread"});
+  EXPECT_NE(set.find("--set evaluation.backend=thread: evaluation.backend = \"thread\" is not one of: auto, threads, "
+                     "processes, mpi"),
+            std::string::npos)
+      << set;
+}
+
+// A value set through the document arrives as that string, whatever it holds: quotes, backslashes
+// and newlines are quoted once, by toml_string (a sweep's --output, a run directory's output.dir).
+TEST(Config, StringsSetThroughTheDocumentRoundTrip) {
+  const std::string tricky = "it's \"quoted\" \\ and = and # and [x]";
+  Document d = Document::parse(kValid, "exp.toml");
+  d.set_string("experiment.name", tricky);
+  d.set_integer("experiment.seed", 9000000000000000);
+  const Experiment ex = resolve(d, registry());
+  EXPECT_EQ(ex.settings.name, tricky);
+  EXPECT_EQ(ex.settings.seed, 9000000000000000u);
+  // ... and back through the resolved configuration, as --resume reads config.toml.
+  EXPECT_EQ(config_values(ex.resolved_toml, "config.toml").at("experiment.name"), toml_string(tricky));
+  EXPECT_EQ(resolve(Document::parse(ex.resolved_toml, "config.toml"), registry()).settings.name, tricky);
+
+  Document nl = Document::parse(kValid, "exp.toml");
+  nl.set_string("output.dir", "runs\nelsewhere");  // arrives whole, and is refused by the schema
+  try {
+    resolve(nl, registry());
+    FAIL();
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("--set output.dir=\"runs\\nelsewhere\": output.dir contains a control character "
+                       "(runs\\nelsewhere)"),
+              std::string::npos)
+        << msg;
+  }
+}
+
+// The environment's default descriptor comes from its component info: resolve() fills it in with
+// no plugin object built, after the other tables (where config.toml has always had it).
+TEST(Config, TheDefaultDescriptorIsResolvedFromTheEnvironmentsComponentInfo) {
+  const Experiment ex = resolve(Document::parse(kValid, "exp.toml"), registry());
+  EXPECT_EQ(ex.descriptor.type, "arm-endpoint");
+  ASSERT_NE(ex.descriptor.entry, nullptr);
+  EXPECT_TRUE(ex.descriptor.implied);
+  EXPECT_EQ(ex.descriptor.config.get_int("bins"), 50);                             // its default
+  const std::string table = "\n[descriptor]\nbins = 50\ntype = 'arm-endpoint'\n";  // the last table
+  ASSERT_GE(ex.resolved_toml.size(), table.size());
+  EXPECT_EQ(ex.resolved_toml.substr(ex.resolved_toml.size() - table.size()), table) << ex.resolved_toml;
+  // Each environment of this repository declares its own.
+  for (const auto& [env, descriptor] :
+       std::vector<std::pair<std::string, std::string>>{{"arm", "arm-endpoint"},
+                                                        {"striker", "striker-contacts"},
+                                                        {"bipedal-walker", "walker-gait"},
+                                                        {"bipedal-kicker", "kicker-ball"},
+                                                        {"lp-sphere", "lp-measures"},
+                                                        {"lp-rastrigin", "lp-measures"}}) {
+    const ComponentEntry* e = registry().find(env);
+    ASSERT_NE(e, nullptr) << env;
+    ASSERT_NE(e->info->default_descriptor, nullptr) << env;
+    EXPECT_EQ(e->info->default_descriptor, descriptor) << env;
+  }
+  EXPECT_EQ(registry().find("iso")->info->default_descriptor, nullptr);
 }
 
 TEST(Config, LatentLargerThanParameterCountIsAConfigError) {

@@ -17,7 +17,7 @@ namespace {
 class Walk final : public qd::Environment {
  public:
   explicit Walk(bool shared) : shared_(shared) {}
-  qd::EnvironmentInfo info() const override { return {2, 1, kSteps, ""}; }
+  qd::EnvironmentInfo info() const override { return {2, 1, kSteps}; }
   void rollout(const qd::RolloutBatch& batch, qd::Trace* traces) const override {
     std::unique_ptr<qd::Policy> own;
     qd::Policy* policy = nullptr;

@@ -5,6 +5,7 @@
 #include "runtime/run_directory.hpp"
 
 #include <qd/errors.hpp>
+#include <qd/planning.hpp>
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -29,7 +30,7 @@ constexpr int kMaxSteps = 30;
 
 class StepsEnvironment final : public Environment {
  public:
-  EnvironmentInfo info() const override { return {1, 1, kMaxSteps, ""}; }
+  EnvironmentInfo info() const override { return {1, 1, kMaxSteps}; }
   void rollout(const RolloutBatch& b, Trace* traces) const override {
     for (std::size_t i = b.begin; i < b.end; ++i) {
       traces[i].main.reset(1);
@@ -69,8 +70,22 @@ class RowsSampler final : public Mutator {
   bool parents_;
 };
 
+// A model that says nothing about its fit's cost (no FitTimeEstimate).
+class UntimedModel final : public Representation {
+ public:
+  int latent_size() const noexcept override { return 1; }
+  FitReport fit(const Dataset&, const FitContext&) override { return {}; }
+  void encode(const Matrix& theta, Matrix& z) const override { z = theta.leftCols(1); }
+  void decode(const Matrix& z, Matrix& theta) const override { theta = Matrix::Zero(z.rows(), 4); }
+  void decoder_jacobians(const Matrix& z, std::vector<Matrix>& j) const override {
+    j.assign(static_cast<std::size_t>(z.rows()), Matrix::Zero(4, 1));
+  }
+  void save(std::ostream&) const override {}
+  void load(std::istream&) override {}
+};
+
 // A model whose fit "takes" half a second per row; or one that breaks the contract.
-class TimedModel final : public Representation {
+class TimedModel final : public Representation, public FitTimeEstimate {
  public:
   enum class Fault { kNone, kWrongSize, kNan, kThrows };
   explicit TimedModel(int latent, Fault fault = Fault::kNone) : latent_(latent), fault_(fault) {}
@@ -111,8 +126,8 @@ struct World {
     s.iterations = 2;
     s.batch = 5;
     s.initial_samples = 6;
-    s.insertion = "coin-flip";
-    s.dataset_order = "reference";
+    s.insertion = InsertionRule::kCoinFlip;
+    s.dataset_order = DatasetOrder::kReference;
     c.shape = PolicyShape(1, {1}, 1);
     c.environment = own<StepsEnvironment>();
     c.descriptor = own<CellDescriptor>();
@@ -128,6 +143,7 @@ struct World {
     c.mutator = own<RowsSampler>(parents);
   }
   ExperimentSettings s;
+  CostModel cost;  // [cost]: none unless a test sets it
   Components c;
   TimedModel* model = nullptr;
 };
@@ -173,7 +189,7 @@ TEST(CostEstimate, PilotOffspringAreTheElitesBredOnce) {
 
 TEST(CostEstimate, MutationEpisodesCostWhatThePilotsOffspringCost) {
   World w(true, 0);
-  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot());
   EXPECT_EQ(e.evaluations, 6 + 2 * 2 * 5);
   EXPECT_DOUBLE_EQ(e.episode_seconds, 6 * 0.020 + 20 * 0.060);
   EXPECT_EQ(e.training_seconds, 0.0);  // no latent space: the model is not asked
@@ -182,7 +198,7 @@ TEST(CostEstimate, MutationEpisodesCostWhatThePilotsOffspringCost) {
 
 TEST(CostEstimate, SamplerEpisodesCostWhatLoopZerosCost) {
   World w(false, 0);
-  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot());
   EXPECT_DOUBLE_EQ(e.episode_seconds, 26 * 0.020);
 }
 
@@ -192,12 +208,12 @@ TEST(CostEstimate, WithoutElitesOffspringArePricedAsLoopZero) {
   p.offspring_seconds = 0.0;
   World w(true, 0);
   EXPECT_DOUBLE_EQ(p.offspring_seconds_per_episode(), 0.020);
-  EXPECT_DOUBLE_EQ(estimate_run_cost(w.s, w.c, p).episode_seconds, 26 * 0.020);
+  EXPECT_DOUBLE_EQ(estimate_run_cost(w.s, w.cost, w.c, p).episode_seconds, 26 * 0.020);
 }
 
 TEST(CostEstimate, TrainingAddsTheModelsTimeForTheExpectedDatasetSizes) {
   World w(true, 1);
-  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot());
   // |D| = 6 after loop 0, then 6 (1 + kDatasetGrowth sqrt(loop)).
   const std::vector<std::size_t> rows = {6, static_cast<std::size_t>(6 * (1 + kDatasetGrowth)),
                                          static_cast<std::size_t>(6 * (1 + kDatasetGrowth * std::sqrt(2.0)))};
@@ -215,7 +231,7 @@ TEST(CostEstimate, DatasetNeverOutgrowsTheGrid) {
 
 TEST(CostEstimate, AResumedRunCountsOnlyTheLoopsLeft) {
   World w(true, 1);
-  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot(), 2);
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot(), 2);
   EXPECT_EQ(e.evaluations, 10);
   EXPECT_DOUBLE_EQ(e.episode_seconds, 10 * 0.060);
   EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * static_cast<double>(expected_dataset_rows(known_pilot(), kCells, 2)));
@@ -223,10 +239,18 @@ TEST(CostEstimate, AResumedRunCountsOnlyTheLoopsLeft) {
 
 TEST(CostEstimate, AResumedRunsOwnRatePricesItsEvaluationsInsteadOfThePilot) {
   World w(true, 1);
-  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot(), 2, {0.5, 1});
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot(), 2, {0.5, 1});
   EXPECT_EQ(e.evaluations, 10);
   EXPECT_DOUBLE_EQ(e.episode_seconds, 10 * 0.5);
   EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * static_cast<double>(expected_dataset_rows(known_pilot(), kCells, 2)));
+}
+
+TEST(CostEstimate, ARepresentationWithoutFitTimeEstimateAddsNoTraining) {
+  World w(true, 1);
+  w.c.representation = own<UntimedModel>();
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot());
+  EXPECT_EQ(e.training_seconds, 0.0);
+  EXPECT_DOUBLE_EQ(e.episode_seconds, 6 * 0.020 + 20 * 0.060);  // the episodes are priced as ever
 }
 
 TEST(CostEstimate, TheCostTableInterpolatesLinearlyAndHoldsItsEnds) {
@@ -247,26 +271,28 @@ TEST(CostEstimate, TheCostTablePricesABreedingRunsEpisodesFromLoopZerosAtEachLoo
   World w(true, 0);
   EXPECT_DOUBLE_EQ(loop_midpoint_evaluations(w.s, 1), 11.0);
   EXPECT_DOUBLE_EQ(loop_midpoint_evaluations(w.s, 2), 21.0);
-  w.s.cost.evaluations = {10, 30};
-  w.s.cost.offspring_time = {2, 4};
-  const CostEstimate e = estimate_run_cost(w.s, w.c, known_pilot());
+  w.cost.evaluations = {10, 30};
+  w.cost.offspring_time = {2, 4};
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot());
   // Measured on long runs against loop 0's time, so it replaces the pilot's offspring.
   EXPECT_DOUBLE_EQ(e.episode_seconds, 6 * 0.020 + 10 * 0.020 * 2.1 + 10 * 0.020 * 3.1);
 
   World sampler(false, 0);  // random search does not breed from elites: loop 0's time throughout
-  sampler.s.cost = w.s.cost;
-  EXPECT_DOUBLE_EQ(estimate_run_cost(sampler.s, sampler.c, known_pilot()).episode_seconds, 26 * 0.020);
+  sampler.cost = w.cost;
+  EXPECT_DOUBLE_EQ(estimate_run_cost(sampler.s, sampler.cost, sampler.c, known_pilot()).episode_seconds, 26 * 0.020);
 }
 
 TEST(CostEstimate, AResumedRunsOwnRateGrowsAsTheCostTableDoesFromItsMeasuredLoop) {
   World w(true, 0);
-  w.s.cost.evaluations = {10, 30};
-  w.s.cost.offspring_time = {2, 4};
+  w.cost.evaluations = {10, 30};
+  w.cost.offspring_time = {2, 4};
   // Measured in loop 1 (factor 2.1): loop 2 (factor 3.1) costs 3.1 / 2.1 of it.
-  EXPECT_DOUBLE_EQ(estimate_run_cost(w.s, w.c, known_pilot(), 2, {0.5, 1}).episode_seconds, 10 * 0.5 * 3.1 / 2.1);
+  EXPECT_DOUBLE_EQ(estimate_run_cost(w.s, w.cost, w.c, known_pilot(), 2, {0.5, 1}).episode_seconds,
+                   10 * 0.5 * 3.1 / 2.1);
   World sampler(false, 0);
-  sampler.s.cost = w.s.cost;
-  EXPECT_DOUBLE_EQ(estimate_run_cost(sampler.s, sampler.c, known_pilot(), 2, {0.5, 1}).episode_seconds, 10 * 0.5);
+  sampler.cost = w.cost;
+  EXPECT_DOUBLE_EQ(estimate_run_cost(sampler.s, sampler.cost, sampler.c, known_pilot(), 2, {0.5, 1}).episode_seconds,
+                   10 * 0.5);
 }
 
 TEST(CostEstimate, TheMeasuredLoopsWorkersComeFromTheSessionThatRanIt) {
@@ -285,7 +311,7 @@ TEST(CostEstimate, AModelsBrokenEstimateEndsTheDryRunNamingIt) {
   for (auto fault : {TimedModel::Fault::kWrongSize, TimedModel::Fault::kNan, TimedModel::Fault::kThrows}) {
     World w(true, 1, fault);
     try {
-      estimate_run_cost(w.s, w.c, known_pilot());
+      estimate_run_cost(w.s, w.cost, w.c, known_pilot());
       ADD_FAILURE() << "no error for fault " << static_cast<int>(fault);
     } catch (const PluginError& e) {
       const std::string what = e.what();

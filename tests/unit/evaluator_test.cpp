@@ -1,6 +1,8 @@
 // The evaluator gives identical results whatever the number of workers.
 #include "runtime/evaluator.hpp"
+#include "runtime/batch_protocol.hpp"
 #include "runtime/process_evaluator.hpp"
+#include "runtime/thread_evaluator.hpp"
 
 #include <qd/descriptor.hpp>
 #include <qd/environment.hpp>
@@ -12,8 +14,10 @@
 #include <signal.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -26,7 +30,7 @@ namespace {
 // early when that action leaves [-0.9, 0.9], and a non-finite action is kInvalidAction.
 class ScriptedEnvironment final : public Environment {
  public:
-  EnvironmentInfo info() const override { return {6, 3, 50, "scripted"}; }
+  EnvironmentInfo info() const override { return {6, 3, 50}; }
   void rollout(const RolloutBatch& batch, Trace* traces) const override {
     Policy policy(*batch.shape);
     std::vector<float> obs(6, 0.0f);
@@ -329,7 +333,7 @@ class HistoryEnvironment final : public Environment {
  public:
   explicit HistoryEnvironment(int worlds) : state_(static_cast<std::size_t>(worlds), 0) {}
   EnvironmentInfo info() const override {
-    EnvironmentInfo i{6, 3, 1, "scripted"};
+    EnvironmentInfo i{6, 3, 1};
     i.persistent_worlds = static_cast<int>(state_.size());
     return i;
   }
@@ -395,9 +399,9 @@ TEST(Evaluator, PersistentWorldsNeedTheThreadsBackend) {
   const PolicyShape shape(6, {4}, 3);
   runtime::EvaluatorSpec spec;
   spec.labels.environment = "environment 'history'";
-  spec.backend = "auto";
+  spec.backend = runtime::Backend::kAuto;
   EXPECT_STREQ(runtime::make_evaluator(spec, env, desc, shape)->backend(), "threads");
-  spec.backend = "processes";
+  spec.backend = runtime::Backend::kProcesses;
   try {
     runtime::make_evaluator(spec, env, desc, shape);
     FAIL() << "processes accepted";
@@ -409,4 +413,89 @@ TEST(Evaluator, PersistentWorldsNeedTheThreadsBackend) {
   spec.workers = 1;
   spec.capacity = 4;
   EXPECT_STREQ(runtime::make_evaluator(spec, env, desc, shape)->backend(), "processes");
+}
+
+// The batch protocol (batch_protocol.hpp): the one row evaluator is what every backend runs, so a
+// block of rows evaluated by it directly, one rollout call per row (as worker processes run it)
+// or in one call, unpacks to what the threads and process backends return for the whole batch.
+TEST(BatchProtocol, TheRowEvaluatorIsWhatEveryBackendRuns) {
+  const ScriptedEnvironment env;
+  const ScriptedDescriptor desc;
+  const PolicyShape shape(6, {8, 8}, 3);
+  Matrix params = random_params(shape, 37, 21);
+  params(5, 0) = std::nan("");  // a failed rollout: status and steps travel, no cell
+  std::vector<std::uint64_t> seeds(37);
+  for (std::size_t i = 0; i < seeds.size(); ++i) seeds[i] = 1000 + i;
+  runtime::ThreadEvaluator threads(env, desc, shape, 3);
+  runtime::ProcessEvaluator procs(env, desc, shape, 2, 37, 60);
+  runtime::Evaluations by_threads, by_processes, by_rows, by_single_rows;
+  threads.evaluate(params, seeds, 0, by_threads);
+  procs.evaluate(params, seeds, 0, by_processes);
+
+  runtime::RowEvaluator rows(env, desc, shape);
+  const std::size_t dims = rows.dims(), w = runtime::record_width(dims);
+  std::vector<double> records(37 * w, -7.0);
+  rows.run(params.data(), seeds.data(), 37, records.data());
+  by_rows.reset(37, dims);
+  runtime::unpack_records(records.data(), 0, 37, dims, by_rows);
+  // Rows 10..19 alone, one rollout call each with the progress word, as a worker process runs them.
+  std::atomic<std::uint64_t> current{99};
+  std::vector<double> block(10 * w);
+  rows.run(params.row(10).data(), seeds.data() + 10, 10, block.data(), 10, &current);
+  EXPECT_EQ(current.load(), 0u);  // idle again
+  by_single_rows = by_rows;
+  runtime::unpack_records(block.data(), 10, 20, dims, by_single_rows);
+
+  EXPECT_EQ(by_threads.status[5], EvalStatus::kInvalidAction);
+  EXPECT_EQ(by_threads.cells[5], -1);
+  expect_same(by_threads, by_processes);
+  expect_same(by_threads, by_rows);
+  expect_same(by_threads, by_single_rows);
+}
+
+// Records carry cells as doubles: exact for every cell a grid can have; a broken descriptor's cell
+// beyond int64 saturates (no undefined conversion) and is still refused by the output checks.
+TEST(BatchProtocol, RecordsRoundTripCellsAndSaturateBeyondInt64) {
+  const std::size_t dims = 2, w = runtime::record_width(dims);
+  std::vector<double> records(3 * w, 0.0);
+  const double cells[3] = {static_cast<double>((std::int64_t{1} << 52) + 1), 1e30, -1e30};
+  for (std::size_t i = 0; i < 3; ++i) {
+    records[i * w + 0] = static_cast<double>(static_cast<int>(EvalStatus::kOk));
+    records[i * w + 1] = 17;
+    records[i * w + 2] = -0.25;
+    records[i * w + 3] = cells[i];
+    records[i * w + 4] = 0.5 + static_cast<double>(i);
+    records[i * w + 5] = -1.5;
+  }
+  runtime::Evaluations out;
+  out.reset(5, dims);
+  runtime::unpack_records(records.data(), 2, 5, dims, out);
+  EXPECT_EQ(out.cells[0], -1);  // rows before `begin` untouched
+  EXPECT_EQ(out.cells[2], (std::int64_t{1} << 52) + 1);
+  EXPECT_EQ(out.cells[3], std::numeric_limits<std::int64_t>::max());
+  EXPECT_EQ(out.cells[4], std::numeric_limits<std::int64_t>::min());
+  EXPECT_EQ(out.steps[3], 17);
+  EXPECT_EQ(out.fitness[4], -0.25);
+  EXPECT_EQ(out.descriptors(4, 0), 2.5);
+  EXPECT_EQ(out.descriptors(4, 1), -1.5);
+}
+
+// Chunking is defined once: guided chunks never exceed the largest chunk, never drop below one
+// row, shrink as the batch drains and cover it exactly.
+TEST(BatchProtocol, GuidedChunksCoverTheBatchAndShrink) {
+  for (const std::size_t n : {1u, 7u, 100u, 1000u, 4096u})
+    for (const std::size_t workers : {1u, 2u, 3u, 16u}) {
+      const std::size_t largest = runtime::largest_chunk(n, workers);
+      EXPECT_GE(largest, 1u);
+      EXPECT_LE(largest, std::max<std::size_t>(1, n / (8 * workers)));
+      std::size_t done = 0, previous = largest;
+      while (done < n) {
+        const std::size_t c = std::min(runtime::guided_chunk(n - done, workers, largest), n - done);
+        ASSERT_GE(c, 1u);
+        ASSERT_LE(c, previous);
+        previous = c;
+        done += c;
+      }
+      EXPECT_EQ(done, n);
+    }
 }

@@ -3,7 +3,7 @@
 // descriptor (runtime/components.cpp). A run's stored grid and CVT centroids are read back only
 // from regular files of the run directory.
 #include "runtime/components.hpp"
-#include "runtime/csv.hpp"
+#include "runtime/run_files.hpp"
 
 #include <qd/errors.hpp>
 

@@ -4,6 +4,7 @@
 // given), and a linear representation has a known reconstruction error. Each test states the rule
 // of the paper it checks; tests/README.md lists the deliberate bugs each one catches.
 #include "runtime/map_elites.hpp"
+#include "runtime/thread_evaluator.hpp"
 
 #include <qd/rng.hpp>
 
@@ -29,7 +30,7 @@ constexpr double kNanFitness = 7, kInfDescriptor = 8, kCellOutOfRange = 9;
 // trace.main = (θ0, θ1, θ3); fitness θ1; a negative θ0 is a failed episode.
 class ScriptedEnvironment final : public Environment {
  public:
-  EnvironmentInfo info() const override { return {1, 1, 1, ""}; }
+  EnvironmentInfo info() const override { return {1, 1, 1}; }
   void rollout(const RolloutBatch& b, Trace* traces) const override {
     for (std::size_t i = b.begin; i < b.end; ++i) {
       const double* theta = b.row(i);
@@ -63,6 +64,7 @@ class ScriptedMutator final : public Mutator {
  public:
   explicit ScriptedMutator(bool parents) : parents_(parents) {}
   bool uses_parents() const noexcept override { return parents_; }
+  std::vector<std::string> metric_names() const override { return {kMixingRatio}; }
   void mutate(const Parents& parents, std::size_t count, MutateContext&, Offspring& out) override {
     seen_parents.push_back(parents.cells);
     out.reset(count, kP, latent_size);
@@ -77,7 +79,7 @@ class ScriptedMutator final : public Mutator {
         out.has_latent[i] = 1;
       }
     }
-    out.mixing_ratio = 0.25;
+    out.metrics = {0.25};  // the mixing ratio
   }
   void feedback(const Feedback& fb) override {
     feedbacks.push_back(fb);
@@ -136,7 +138,7 @@ class Recorder final : public LoopObserver {
  public:
   void iteration_done(const IterationOutcome& o) override {
     outcomes.push_back(o);
-    mixing.push_back(o.offspring->mixing_ratio);
+    mixing.push_back(o.offspring->metrics.at(0));
   }
   void training_done(int loop, const FitReport&, double) override { trained.push_back(loop); }
   std::vector<IterationOutcome> outcomes;
@@ -157,9 +159,9 @@ struct World {
     s.iterations = 2;
     s.batch = batch;
     s.initial_samples = initial_samples;
-    s.insertion = "coin-flip";
+    s.insertion = InsertionRule::kCoinFlip;
     s.replace_probability = 0.5;
-    s.dataset_order = "reference";
+    s.dataset_order = DatasetOrder::kReference;
     c.shape = PolicyShape(1, {1}, 1);  // 4 parameters; only the first three are read
     c.environment = own<ScriptedEnvironment>();
     c.descriptor = own<ScriptedDescriptor>();
@@ -175,12 +177,13 @@ struct World {
     mutator = m.get();
     initial = i.get();
     mutator->latent_size = with_model ? 1 : 0;
+    c.metric_names = m->metric_names();
     c.mutator = std::move(m);
     c.initial = std::move(i);
     evaluator = std::make_unique<ThreadEvaluator>(*c.environment, *c.descriptor, c.shape, 1);
     archive = std::make_unique<Archive>(kCells, c.shape.param_count(), 1);
     dataset = std::make_unique<Dataset>(c.shape.param_count());
-    loop = std::make_unique<MapElites>(s, c, *evaluator, *archive, *dataset, recorder, "");
+    loop = std::make_unique<MapElites>(s, c, *evaluator, *archive, *dataset, recorder);
   }
   // Queues rows (θ0, θ1, θ2) for the initial sampler or the mutator.
   static void queue(ScriptedMutator& m, const std::vector<std::vector<double>>& rows) {
@@ -277,7 +280,7 @@ TEST(MapElitesLoop, CoinFlipDecidesOnlyOccupiedCells) {
 // replacement that is no improvement.
 TEST(MapElitesLoop, FeedbackTellsEachOffspringsOutcomeAndFitnessChange) {
   World w(false, 5, 2);
-  w.s.insertion = "fitness";
+  w.s.insertion = InsertionRule::kFitness;
   World::queue(*w.initial, {{1, 5}, {2, 5}});
   w.loop->run_loop(0);
   World::queue(*w.mutator, {{1, 4}, {1, 6}, {1, 5.5}, {3, 2}, {-1, 9}});
@@ -336,7 +339,7 @@ TEST(MapElitesLoop, CoinFlipReplacesHalfTheOccupiedOffers) {
 // (ties keep the occupant); no coin is involved.
 TEST(MapElitesLoop, FitnessInsertionReplacesOnlyStrictlyBetter) {
   World w(false, 4, 2);
-  w.s.insertion = "fitness";
+  w.s.insertion = InsertionRule::kFitness;
   World::queue(*w.initial, {{1, 5}, {2, 5}});
   w.loop->run_loop(0);
   World::queue(*w.mutator, {{1, 4}, {1, 5}, {2, 7}, {2, 6}});
@@ -445,7 +448,7 @@ TEST(MapElitesLoop, NonFiniteFitnessOrDescriptorIsInvalidAndNeverStored) {
   EXPECT_EQ(w.recorder.outcomes[0].invalid, 2u);
   World::queue(*w.mutator, {{3, 9, 0, kNanFitness}, {4, 9, 0, kInfDescriptor}, {5, 1}, {6, 1}});
   World::queue(*w.mutator, std::vector<std::vector<double>>(4, {7, 0}));
-  w.s.insertion = "fitness";  // a NaN would otherwise win or block a cell forever
+  w.s.insertion = InsertionRule::kFitness;  // a NaN would otherwise win or block a cell forever
   w.loop->run_loop(1);
   EXPECT_EQ(w.param(3, 1), 5.0);
   EXPECT_EQ(w.param(4, 1), 6.0);

@@ -1,8 +1,8 @@
 // The QD metrics of metrics.csv (qd_score, max_fitness, mean_fitness) against the archive they
 // describe: known answers for qd_metrics(), the columns of a real run parsed back against its
 // archive.csv, and a task without fitness leaving them empty.
-#include "runtime/archive.hpp"
 #include "runtime/experiment.hpp"
+#include "runtime/grid_archive.hpp"
 #include "runtime/run.hpp"
 
 #include <qd/errors.hpp>

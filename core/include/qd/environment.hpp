@@ -46,8 +46,8 @@ struct EnvironmentInfo {
   int observation_size = 0;
   int action_size = 0;
   int max_steps = 0;
-  std::string default_descriptor;  // descriptor component used when the experiment names none
-  int persistent_worlds = 0;       // 0: stateless (the contract above); N > 0: N persistent worlds
+  // (The default descriptor is declared with the component: qd::environment<T>, <qd/plugin.hpp>.)
+  int persistent_worlds = 0;  // 0: stateless (the contract above); N > 0: N persistent worlds
   // Whether Trace::fitness is the task's objective. Without one (the PoMS paper's Box2D tasks), the
   // QD metrics of metrics.csv (qd_score, max_fitness, mean_fitness) stay empty and
   // [experiment] insertion = "fitness" is refused.

@@ -7,14 +7,16 @@
 //  * All randomness comes from ctx.rng, which the core derives from (seed, loop, iteration).
 //  * What mutate() receives: `out` already sized by Offspring::reset(count, P, LD): theta is
 //    count × P and latent count × LD (0 × 0 without a latent space), both with unspecified values;
-//    has_latent is count zeros, mixing_ratio NaN, metrics empty. `parents` holds `count` rows
+//    has_latent is count zeros, metrics empty. `parents` holds `count` rows
 //    selected uniformly from the archive (without replacement once it holds `count` elites), or
 //    none at all for samplers and in loop 0.
 //  * mutate() fills every row of out.theta (assigning a new count × P matrix is fine). When the
 //    representation has a latent space, a mutator may give the latent point each offspring came
 //    from (out.latent row + has_latent = 1); the core encodes the others and stores
 //    recn_error = ‖θ′ − Dec(z′)‖ (docs/reference-behaviour.md). It appends one value per
-//    metric_names() entry to out.metrics. Another shape is an error that ends the run.
+//    metric_names() entry to out.metrics. Another shape is an error that ends the run. A metric
+//    named kMixingRatio (the share of the batch made in parameter space, in [0, 1]) fills
+//    metrics.csv's mixing_ratio column; the others get columns of their own.
 //  * Mutators whose uses_parents() is false (samplers: ps-uniform, ps-glorot) get no parents.
 //  * feedback() tells, per offspring in batch order, what the archive did with it and the fitness
 //    it brought (Feedback::results): what adaptive operators such as CMA-ME's emitters rank by.
@@ -37,6 +39,10 @@
 
 namespace qd {
 
+// The metric name of the fraction of a batch made in parameter space (the reference's "mixing
+// ratio"): metrics.csv writes it in its mixing_ratio column, empty for mutators without it.
+inline constexpr const char* kMixingRatio = "mixing_ratio";
+
 // Selected parents: copies of the elites' rows.
 struct Parents {
   Matrix theta;       // n × P
@@ -48,10 +54,7 @@ struct QD_EXPORT Offspring {
   Matrix theta;                          // count × P
   Matrix latent;                         // count × LD (only when LD > 0)
   std::vector<std::uint8_t> has_latent;  // 1 where latent.row(i) is the offspring's origin z′
-  // Fraction of this batch made in parameter space (the reference "mixing ratio"); NaN = not
-  // applicable (written as an empty CSV field).
-  double mixing_ratio = std::numeric_limits<double>::quiet_NaN();
-  // Extra per-iteration values, in the order of Mutator::metric_names().
+  // Per-iteration values, in the order of Mutator::metric_names().
   std::vector<double> metrics;
 
   void reset(std::size_t count, std::size_t params, std::size_t latent_size);
@@ -119,7 +122,8 @@ class QD_EXPORT Mutator : public Component {
   virtual bool uses_parents() const noexcept { return true; }
   // Whether this operator needs a representation with a latent space (checked at setup).
   virtual bool needs_latent() const noexcept { return false; }
-  // Names of Offspring::metrics columns added to metrics.csv (e.g. the DDE arm).
+  // Names of the Offspring::metrics values, each a metrics.csv column (e.g. the DDE arm;
+  // kMixingRatio fills the mixing_ratio column).
   virtual std::vector<std::string> metric_names() const { return {}; }
 
   virtual void begin_loop(const LoopContext& ctx);

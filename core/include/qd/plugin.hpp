@@ -47,7 +47,12 @@ namespace qd {
 //    offspring (Feedback::results, was `outcomes`); EnvironmentInfo declares fitness and direct
 //    parameter vectors; GridSpec::centroids (CVT); BuildContext::batch, wrapped, stored_grid;
 //    ComponentInfo::flags (descriptor adapters). CHANGELOG.md has the migrations.
-inline constexpr std::uint32_t kPluginAbiVersion = 7;
+// 8: Offspring::mixing_ratio is the metric kMixingRatio; FitContext::log (a TrainingLog) replaces
+//    FitContext::run_dir and Representation::log_files(); an environment's default descriptor is
+//    declared in its ComponentInfo (qd::environment<T>), no longer in EnvironmentInfo;
+//    Representation::estimate_fit_seconds moves to the optional qd::FitTimeEstimate
+//    (<qd/planning.hpp>). CHANGELOG.md has the migrations.
+inline constexpr std::uint32_t kPluginAbiVersion = 8;
 
 enum class Kind : std::uint32_t { kEnvironment = 1, kDescriptor = 2, kRepresentation = 3, kMutator = 4 };
 QD_EXPORT const char* to_string(Kind kind) noexcept;
@@ -67,6 +72,10 @@ struct ComponentInfo {
   std::uint32_t param_count;
   CreateFn create;
   std::uint32_t flags;  // kWrapsDescriptor
+  // Environments: the descriptor used when the experiment's [descriptor] names none (nullptr:
+  // none, the experiment must name one). Declared here, not by a built environment, so that an
+  // experiment file resolves completely before any plugin object exists.
+  const char* default_descriptor;
 };
 
 // Layout frozen for a given abi_version; abi_version must stay the first field.
@@ -90,13 +99,29 @@ ComponentInfo component(Kind kind, const char* name, const char* summary, const 
           params,
           static_cast<std::uint32_t>(N),
           [](const Config& c, const BuildContext& b) -> Component* { return new T(c, b); },
-          0u};
+          0u,
+          nullptr};
 }
 template <class T>
 ComponentInfo component(Kind kind, const char* name, const char* summary) {
-  return {kind,    name, summary,
-          nullptr, 0u,   [](const Config& c, const BuildContext& b) -> Component* { return new T(c, b); },
-          0u};
+  return {kind,    name,   summary,
+          nullptr, 0u,     [](const Config& c, const BuildContext& b) -> Component* { return new T(c, b); },
+          0u,      nullptr};
+}
+// An environment and its default descriptor (a descriptor component's name, in this plugin or
+// another; nullptr: none).
+template <class T, std::size_t N>
+ComponentInfo environment(const char* name, const char* summary, const ParamSpec (&params)[N],
+                          const char* default_descriptor) {
+  ComponentInfo info = component<T>(Kind::kEnvironment, name, summary, params);
+  info.default_descriptor = default_descriptor;
+  return info;
+}
+template <class T>
+ComponentInfo environment(const char* name, const char* summary, const char* default_descriptor) {
+  ComponentInfo info = component<T>(Kind::kEnvironment, name, summary);
+  info.default_descriptor = default_descriptor;
+  return info;
 }
 // A descriptor that wraps another ([descriptor] type = NAME, the wrapped one in [descriptor.wraps],
 // by default the environment's own): the core builds the wrapped descriptor first and hands it over

@@ -9,6 +9,8 @@
 //  * The const members are thread-safe and may run concurrently.
 //  * save()/load() round-trip the full state (weights and optimiser) bit for bit; the checkpoint
 //    stores the blob. load() throws qd::StateError on a malformed or mismatched blob.
+//  * What `qdrun --dry-run` asks about the cost of fit() is no part of this contract: a model whose
+//    fit is costly implements qd::FitTimeEstimate (<qd/planning.hpp>) beside it.
 #pragma once
 
 #include <qd/component.hpp>
@@ -24,10 +26,24 @@
 
 namespace qd {
 
+// Where fit() may log its training (per-epoch losses, explained variance): the core appends the
+// rows to a file of the run directory, records its size at every checkpoint and cuts it back when
+// a run resumes, so the log always matches the model the run continues from.
+class TrainingLog {
+ public:
+  // Appends `rows` (whole lines, possibly none) to the run's log `name`, a plain file name ending
+  // in ".csv" that is not one of the core's ("losses.csv"), writing `header` first when the log
+  // is new. Throws when the write fails: a full disk fails the run, it never drops rows.
+  virtual void append(const std::string& name, const std::string& header, const std::string& rows) = 0;
+
+ protected:
+  virtual ~TrainingLog() = default;
+};
+
 struct FitContext {
   int loop = 0;
-  std::uint64_t seed = 0;  // run seed
-  std::string run_dir;     // where per-epoch logs go; empty = do not log
+  std::uint64_t seed = 0;      // run seed
+  TrainingLog* log = nullptr;  // null: do not log (the dry-run's pilot, tests)
 };
 
 struct FitReport {
@@ -56,18 +72,6 @@ class QD_EXPORT Representation : public Component {
   virtual void decoder_vjp(const Matrix& z, const Matrix& v, Matrix& out) const;
   // errors[i] = ‖θ_i − Dec(Enc(θ_i))‖₂.
   virtual void reconstruction_errors(const Matrix& theta, Vector& errors) const;
-
-  // Files this representation appends to in FitContext::run_dir (e.g. per-epoch losses). The core
-  // records their sizes at every checkpoint and cuts them back when a run resumes; every write to
-  // them must be checked (a failed write throws), so a log is complete or the run fails.
-  virtual std::vector<std::string> log_files() const;
-
-  // Estimated seconds of fit() on one core, one value per loop: rows[l] is the size of D at loop
-  // l's fit (l = 0, 1, ...). `qdrun --dry-run` calls it, on a representation built for the
-  // estimate and never used for a run, to print a sweep's core-hours. Measure (time a little
-  // training on random data of the run's shape) rather than guess. It must not change what this
-  // object computes. Default: zeros, for models whose fit costs little next to the episodes.
-  virtual std::vector<double> estimate_fit_seconds(const std::vector<std::size_t>& rows) const;
 
   virtual void save(std::ostream& out) const = 0;
   virtual void load(std::istream& in) = 0;

@@ -1,6 +1,7 @@
 #include "runtime/archive_csv.hpp"
 
-#include "runtime/csv.hpp"
+#include "runtime/number_text.hpp"
+#include "runtime/run_files.hpp"
 
 #include <qd/errors.hpp>
 

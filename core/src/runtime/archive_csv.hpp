@@ -2,7 +2,7 @@
 // index, objective, measures_*, recn_error, solution_*), and reading its solutions back.
 #pragma once
 
-#include "runtime/archive.hpp"
+#include "runtime/grid_archive.hpp"
 
 #include <qd/types.hpp>
 

@@ -1,6 +1,6 @@
 #include "runtime/checkpoint.hpp"
 
-#include "runtime/csv.hpp"
+#include "runtime/run_files.hpp"
 
 #include <qd/errors.hpp>
 #include <qd/state_io.hpp>

@@ -21,7 +21,7 @@
 // changed records into a buffer): on Striker a checkpoint writes tens of megabytes per loop.
 #pragma once
 
-#include "runtime/archive.hpp"
+#include "runtime/grid_archive.hpp"
 
 #include <qd/dataset.hpp>
 #include <qd/environment.hpp>

@@ -1,7 +1,8 @@
 #include "runtime/components.hpp"
 
 #include "runtime/checkpoint.hpp"
-#include "runtime/csv.hpp"
+#include "runtime/number_text.hpp"
+#include "runtime/run_files.hpp"
 
 #include <qd/errors.hpp>
 
@@ -136,26 +137,6 @@ bool read_stored_grid(const fs::path& run_dir, GridSpec& g) {
   return true;
 }
 
-std::string toml_string(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    const auto u = static_cast<unsigned char>(c);
-    if (c == '"' || c == '\\') out += '\\';
-    if (c == '\n') {
-      out += "\\n";
-      continue;
-    }
-    if (u < 0x20 || u == 0x7f) {  // TOML allows no control character in a basic string
-      char esc[8];
-      std::snprintf(esc, sizeof(esc), "\\u%04x", u);
-      out += esc;
-      continue;
-    }
-    out += c;
-  }
-  return out + "\"";
-}
-
 void check_grid(const GridSpec& g, const std::string& who) {
   const std::size_t dims = g.dims();
   if (g.cells <= 0 || dims == 0 || g.shape.empty()) throw PluginError(who + " declares an empty grid");
@@ -218,7 +199,7 @@ Owned<T> create(const Registry& registry, const ComponentConfig& cc, const Build
 // A world's state lives in memory and in every checkpoint: far more than any emulated process count.
 constexpr int kMaxPersistentWorlds = 1 << 16;
 
-Components build_components(Experiment& ex, const Registry& registry, const GridSpec* stored_grid) {
+Components build_components(const Experiment& ex, const Registry& registry, const GridSpec* stored_grid) {
   Components c;
   BuildContext ctx;
   ctx.seed = ex.settings.seed;
@@ -245,29 +226,15 @@ Components build_components(Experiment& ex, const Registry& registry, const Grid
   if (!c.has_fitness && !std::isnan(ex.settings.fitness_lower_bound))
     throw InputError("[experiment] fitness_lower_bound is set, but " + env_name +
                      " declares no fitness (its README says what its traces report)");
-  if (!c.has_fitness && ex.settings.insertion == "fitness")
+  if (!c.has_fitness && ex.settings.insertion == InsertionRule::kFitness)
     throw InputError("[experiment] insertion = \"fitness\" needs a task fitness, but " + env_name +
                      " declares none; use insertion = \"coin-flip\"");
   if (c.has_fitness && std::isinf(c.fitness_lower_bound))
     throw PluginError(env_name + " declares an infinite fitness lower bound");
 
-  if (!ex.descriptor.entry) {
-    if (info.default_descriptor.empty())
-      throw InputError(env_name + " has no default descriptor; add [descriptor] type = ...");
-    resolve_default_component(ex, ex.descriptor, registry.require(info.default_descriptor, Kind::kDescriptor));
-  }
   if (ex.descriptor.entry->info->flags & kWrapsDescriptor) {
-    // A descriptor adapter: the descriptor it wraps first (by default the environment's own).
-    if (!ex.wrapped.entry) {
-      if (info.default_descriptor.empty())
-        throw InputError(env_name + " has no default descriptor for " + ex.descriptor.type + " to wrap; add [" +
-                         ex.wrapped.table + "] type = ...");
-      const ComponentEntry& entry = registry.require(info.default_descriptor, Kind::kDescriptor);
-      if (entry.info->flags & kWrapsDescriptor)
-        throw InputError(env_name + "'s default descriptor '" + info.default_descriptor +
-                         "' wraps a descriptor itself; name the one to wrap in [" + ex.wrapped.table + "]");
-      resolve_default_component(ex, ex.wrapped, entry);
-    }
+    // A descriptor adapter: the descriptor it wraps first (resolve() chose it, by default the
+    // environment's own).
     c.wrapped = create<Descriptor>(registry, ex.wrapped, ctx);
     check_grid(c.wrapped->grid(), "descriptor '" + ex.wrapped.type + "' (" + ex.wrapped.entry->plugin->path + ")");
     ctx.wrapped = c.wrapped.get();

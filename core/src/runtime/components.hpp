@@ -42,11 +42,10 @@ struct Components {
   std::vector<std::string> provenance;
 };
 
-// Throws qd::InputError / ConfigError / PluginError naming the file, key or plugin. Resolves the
-// environment's default descriptor into `ex` when the experiment names none (and the one a
-// descriptor adapter wraps). `stored_grid`: the grid of an existing run being opened, for
+// Throws qd::InputError / ConfigError / PluginError naming the file, key or plugin. `ex` is
+// resolved completely (resolve() chose every default). `stored_grid`: the grid of an existing run being opened, for
 // descriptors that compute their grid (BuildContext::stored_grid).
-Components build_components(Experiment& ex, const Registry& registry, const GridSpec* stored_grid = nullptr);
+Components build_components(const Experiment& ex, const Registry& registry, const GridSpec* stored_grid = nullptr);
 
 // grid.toml: the grid's kind ("grid" or "cvt"), cells, shape, names and bounds, its bins' labels if
 // it names them; a CVT's also names its centroids file, centroids.csv (centroids_csv()), with the
@@ -61,8 +60,5 @@ bool read_stored_grid(const std::filesystem::path& run_dir, GridSpec& grid);
 // product of the shape, names or bounds missing, bin labels of another count than the bins, a CVT's
 // centroids of the wrong count or not finite.
 void check_grid(const GridSpec& grid, const std::string& who);
-
-// `s` quoted as a TOML basic string.
-std::string toml_string(const std::string& s);
 
 }  // namespace qd::runtime

@@ -1,12 +1,13 @@
 #include "runtime/cost_estimate.hpp"
 
-#include "runtime/archive.hpp"
 #include "runtime/evaluator.hpp"
+#include "runtime/grid_archive.hpp"
 #include "runtime/map_elites.hpp"
 #include "runtime/plugin_output_checks.hpp"
 
 #include <qd/dataset.hpp>
 #include <qd/errors.hpp>
+#include <qd/planning.hpp>
 #include <qd/rng.hpp>
 
 #include <algorithm>
@@ -26,7 +27,7 @@ class TimedEvaluator final : public Evaluator {
  public:
   TimedEvaluator(const ExperimentSettings& s, const Components& c) {
     EvaluatorSpec spec;
-    spec.backend = "processes";
+    spec.backend = Backend::kProcesses;
     spec.workers = 1;
     spec.capacity = static_cast<std::size_t>(s.initial_samples);
     spec.timeout_seconds = s.timeout_seconds;
@@ -63,7 +64,7 @@ EpisodePilot run_episode_pilot(const ExperimentSettings& settings, Components& c
   Archive archive(c.grid.cells, c.shape.param_count(), c.grid.dims());
   Dataset dataset(c.shape.param_count());
   SilentObserver observer;
-  MapElites loop(settings, c, evaluator, archive, dataset, observer, "");
+  MapElites loop(settings, c, evaluator, archive, dataset, observer);
   loop.initial_sampling();
 
   EpisodePilot p;
@@ -147,15 +148,15 @@ double loop_midpoint_evaluations(const ExperimentSettings& s, int loop) {
   return s.initial_samples + (loop - 1) * per_loop + per_loop / 2;
 }
 
-CostEstimate estimate_run_cost(const ExperimentSettings& s, Components& c, const EpisodePilot& pilot, int first_loop,
-                               MeasuredRate measured) {
+CostEstimate estimate_run_cost(const ExperimentSettings& s, const CostModel& cost, Components& c,
+                               const EpisodePilot& pilot, int first_loop, MeasuredRate measured) {
   CostEstimate e;
   const bool own_rate = measured.seconds_per_evaluation > 0;
   // [cost], measured on long runs, states a breeding run's time per evaluation as a multiple of
   // loop 0's; without it, the pilot's offspring price those loops. A resumed run's own rate grows
   // as [cost] does from the loop it was measured in.
-  const bool lengthens = c.mutator->uses_parents() && !s.cost.evaluations.empty() && (!own_rate || measured.loop >= 1);
-  auto factor = [&](int loop) { return s.cost.offspring_time_at(loop_midpoint_evaluations(s, loop)); };
+  const bool lengthens = c.mutator->uses_parents() && !cost.evaluations.empty() && (!own_rate || measured.loop >= 1);
+  auto factor = [&](int loop) { return cost.offspring_time_at(loop_midpoint_evaluations(s, loop)); };
   const double base_factor = own_rate && lengthens ? factor(measured.loop) : 1.0;
   const double later_base = own_rate                    ? measured.seconds_per_evaluation
                             : lengthens                 ? pilot.seconds_per_episode()
@@ -180,10 +181,11 @@ CostEstimate estimate_run_cost(const ExperimentSettings& s, Components& c, const
     }
     rows.push_back(expected_dataset_rows(pilot, c.grid.cells, loop));
   }
-  if (c.representation->latent_size() == 0 || rows.empty()) return e;
+  // A representation that does not implement FitTimeEstimate costs nothing beyond the episodes.
+  const auto* timing = dynamic_cast<const FitTimeEstimate*>(c.representation.get());
+  if (c.representation->latent_size() == 0 || rows.empty() || !timing) return e;
   std::vector<double> fit;
-  call_plugin(c.representation_label, "estimate_fit_seconds()",
-              [&] { fit = c.representation->estimate_fit_seconds(rows); });
+  call_plugin(c.representation_label, "estimate_fit_seconds()", [&] { fit = timing->estimate_fit_seconds(rows); });
   if (fit.size() != rows.size())
     throw PluginError(c.representation_label + ": estimate_fit_seconds() returned " + std::to_string(fit.size()) +
                       " values for " + std::to_string(rows.size()) + " loops");

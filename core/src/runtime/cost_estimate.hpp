@@ -22,6 +22,7 @@
 #pragma once
 
 #include "runtime/components.hpp"
+#include "runtime/cost_model.hpp"
 #include "runtime/experiment.hpp"
 
 #include <cstddef>
@@ -83,10 +84,11 @@ struct MeasuredRate {
 MeasuredRate measured_rate(std::istream& metrics_csv, int iterations);
 
 // Loops [first_loop, settings.loops) of the run: `first_loop` > 0 for a run that resumes.
+// `cost` is the experiment file's [cost] (read_cost_model).
 // `measured` (a resumed run's own rate in core-seconds, from measured_rate), when positive, prices
 // its evaluations instead of the pilot. Asks the representation to time its fits (a plugin call, checked).
-CostEstimate estimate_run_cost(const ExperimentSettings& settings, Components& components, const EpisodePilot& pilot,
-                               int first_loop = 0, MeasuredRate measured = {});
+CostEstimate estimate_run_cost(const ExperimentSettings& settings, const CostModel& cost, Components& components,
+                               const EpisodePilot& pilot, int first_loop = 0, MeasuredRate measured = {});
 
 // The evaluations done at the middle of loop `loop` >= 1 (where [cost] is read for it).
 double loop_midpoint_evaluations(const ExperimentSettings& settings, int loop);

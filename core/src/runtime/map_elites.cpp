@@ -1,25 +1,23 @@
 #include "runtime/map_elites.hpp"
 
-#include "runtime/csv.hpp"
+#include "runtime/clock.hpp"
 
 #include <qd/errors.hpp>
 #include <qd/rng.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <numeric>
 
 namespace qd::runtime {
 
 MapElites::MapElites(const ExperimentSettings& settings, Components& components, Evaluator& evaluator, Archive& archive,
-                     Dataset& dataset, LoopObserver& observer, std::string run_dir)
+                     Dataset& dataset, LoopObserver& observer)
     : s_(settings),
       c_(components),
       evaluator_(evaluator),
       archive_(archive),
       dataset_(dataset),
       observer_(observer),
-      run_dir_(std::move(run_dir)),
       checks_(components),
       representation_(components, checks_) {}
 
@@ -70,7 +68,7 @@ void MapElites::initial_sampling() {
   // descending cell index; "insertion" keeps the archive's order.
   std::vector<std::size_t> slots(archive_.size());
   std::iota(slots.begin(), slots.end(), std::size_t{0});
-  if (s_.dataset_order == "reference")
+  if (s_.dataset_order == DatasetOrder::kReference)
     std::sort(slots.begin(), slots.end(), [&](auto a, auto b) { return archive_.cell(a) > archive_.cell(b); });
   for (std::size_t slot : slots) dataset_.add(archive_.params(slot), archive_.cell(slot), 0);
   observer_.iteration_done(outcome);
@@ -131,43 +129,19 @@ void MapElites::evaluate(int loop, int it) {
     const std::string which = f.first == f.last
                                   ? "offspring " + std::to_string(f.first)
                                   : "one of offspring " + std::to_string(f.first) + " to " + std::to_string(f.last);
-    const std::string file = save_fault_offspring(loop, it, f.first, f.last);
+    const std::string file = f.first <= f.last && f.last < static_cast<std::size_t>(offspring_.theta.rows())
+                                 ? observer_.fault_offspring(loop, it, f.first, f.last, offspring_.theta, seeds_)
+                                 : "";
     throw PluginError(std::string(f.what()) + " (" + which + " of loop " + std::to_string(loop) + ", iteration " +
                       std::to_string(it) + (file.empty() ? "" : "; parameters and episode seed in " + file) + ")");
   }
-}
-
-std::string MapElites::save_fault_offspring(int loop, int it, std::size_t first, std::size_t last) const {
-  if (run_dir_.empty() || first > last || last >= static_cast<std::size_t>(offspring_.theta.rows())) return "";
-  const std::string path = run_dir_ + "/fault-offspring.csv";
-  std::string text = "loop,iteration,offspring,episode_seed";
-  for (Eigen::Index p = 0; p < offspring_.theta.cols(); ++p) text += ",solution_" + std::to_string(p);
-  text += '\n';
-  for (std::size_t k = first; k <= last; ++k) {
-    for (const std::int64_t v : {std::int64_t{loop}, std::int64_t{it}, static_cast<std::int64_t>(k)}) {
-      append_int(text, v);
-      text += ',';
-    }
-    text += std::to_string(seeds_[k]);
-    for (Eigen::Index p = 0; p < offspring_.theta.cols(); ++p) {
-      text += ',';
-      append_number(text, offspring_.theta(static_cast<Eigen::Index>(k), p));
-    }
-    text += '\n';
-  }
-  try {
-    write_file_atomic(path, text);
-  } catch (const std::exception&) {
-    return "";  // the fault itself is what the user must see
-  }
-  return path;
 }
 
 void MapElites::insert(int loop, int it, IterationOutcome& outcome) {
   // Sequential, in offspring order. An empty cell takes the offspring; an occupied one is replaced
   // with probability replace_probability (a coin drawn only for occupied cells: the paper's random
   // replacement), or, with insertion = "fitness", when the offspring's fitness is higher.
-  const bool by_fitness = s_.insertion == "fitness";
+  const bool by_fitness = s_.insertion == InsertionRule::kFitness;
   const bool has_model = c_.representation->latent_size() > 0;
   Rng coin(s_.seed, Stream::kInsertion, static_cast<std::uint64_t>(loop), static_cast<std::uint64_t>(it));
   const std::size_t n = evaluated_.cells.size();
@@ -231,9 +205,9 @@ void MapElites::reconstruction_errors(Offspring& off) {
 void MapElites::fit_representation(int loop) {
   if (c_.representation->latent_size() == 0) return;
   observer_.training_started(loop);
-  const auto t0 = std::chrono::steady_clock::now();
-  const FitReport report = representation_.fit(dataset_, FitContext{loop, s_.seed, run_dir_});
-  observer_.training_done(loop, report, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  const double t0 = now_seconds();
+  const FitReport report = representation_.fit(dataset_, FitContext{loop, s_.seed, observer_.training_log()});
+  observer_.training_done(loop, report, now_seconds() - t0);
   if (loop == 0) {
     // At loop 1 the archive is rebuilt from D with the errors of the loop-0 model (paper, Sec. 3);
     // later errors stay as stored at insertion (the reference's stale values).

@@ -11,10 +11,10 @@
 // LoopObserver.
 #pragma once
 
-#include "runtime/archive.hpp"
 #include "runtime/components.hpp"
 #include "runtime/evaluator.hpp"
 #include "runtime/experiment.hpp"
+#include "runtime/grid_archive.hpp"
 #include "runtime/plugin_output_checks.hpp"
 
 #include <qd/dataset.hpp>
@@ -41,13 +41,21 @@ class LoopObserver {
   virtual void iteration_done(const IterationOutcome& outcome) = 0;
   virtual void training_started(int /*loop*/) {}
   virtual void training_done(int loop, const FitReport& report, double seconds) = 0;
+  // Where the representation's fit() logs (FitContext::log); null: nowhere.
+  virtual TrainingLog* training_log() { return nullptr; }
+  // A plugin failed on offspring [first, last] of the batch of `loop`, `iteration` (0 <= first <=
+  // last < theta.rows()): the run may keep their parameters (rows of `theta`) and episode seeds.
+  // Returns the file that now holds them, or "" when none does.
+  virtual std::string fault_offspring(int /*loop*/, int /*iteration*/, std::size_t /*first*/, std::size_t /*last*/,
+                                      const Matrix& /*theta*/, const std::vector<std::uint64_t>& /*seeds*/) {
+    return "";
+  }
 };
 
 class MapElites {
  public:
-  // `run_dir` is where the representation may log its training (empty: nowhere).
   MapElites(const ExperimentSettings& settings, Components& components, Evaluator& evaluator, Archive& archive,
-            Dataset& dataset, LoopObserver& observer, std::string run_dir);
+            Dataset& dataset, LoopObserver& observer);
 
   // Runs loop `loop` (0 = the initial random phase) and fits the representation at its end.
   void run_loop(int loop);
@@ -60,11 +68,9 @@ class MapElites {
  private:
   void iterate(int loop, int iteration);
   // Evaluates offspring_.theta with seeds_ into evaluated_ and checks the result. A plugin fault on
-  // particular offspring is rethrown with the loop, iteration and offspring index, and their
-  // parameters and episode seeds are saved to fault-offspring.csv in the run directory.
+  // particular offspring is rethrown with the loop, iteration and offspring index, and the observer
+  // may keep their parameters and episode seeds (LoopObserver::fault_offspring).
   void evaluate(int loop, int iteration);
-  // Writes fault-offspring.csv; returns its path, or "" when there is no run directory or it fails.
-  std::string save_fault_offspring(int loop, int iteration, std::size_t first, std::size_t last) const;
   // Inserts the evaluated batch in offspring order and counts what happened.
   void insert(int loop, int iteration, IterationOutcome& outcome);
   // ‖θ′ − Dec(z′)‖ of every offspring, z′ = its latent origin or Enc(θ′) (0 without a model).
@@ -77,7 +83,6 @@ class MapElites {
   Archive& archive_;
   Dataset& dataset_;
   LoopObserver& observer_;
-  std::string run_dir_;
   PluginOutputChecks checks_;
   CheckedRepresentation representation_;  // c_.representation, its output checked
   std::uint64_t evaluations_ = 0;

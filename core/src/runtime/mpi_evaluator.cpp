@@ -20,23 +20,24 @@
 // normally, so the job ends with rank 0's one line and code.
 //
 // Faults of a whole rank: OpenMPI's mpirun reacts to a dead rank by sending SIGTERM to the others
-// (SIGKILL 1 s later). Rank 0 catches it, finds the dead worker among the pids gathered at
+// (SIGKILL 1 s later). Rank 0 catches it (mpi_session.cpp), finds the dead worker among the pids gathered at
 // start-up, writes the run's status file ("failed ...", the checkpoint is untouched) and exits with
 // one line. A worker rank that sends nothing for twice [evaluation] timeout_seconds plus 5 s (its
 // own supervision reports a hung rollout after timeout_seconds) is reported as hung and the job
 // aborted. Waiting ranks poll with a growing sleep, so idle workers leave the cores to rank 0's
 // training.
-#include "runtime/evaluator.hpp"
+#include "runtime/mpi_evaluator.hpp"
 
+#include "runtime/batch_protocol.hpp"
+#include "runtime/clock.hpp"
+#include "runtime/mpi_session.hpp"
 #include "runtime/process_evaluator.hpp"
 
 #include <mpi.h>
 
-#include <fcntl.h>
 #include <signal.h>
 #include <unistd.h>
 #include <algorithm>
-#include <cerrno>
 #include <chrono>
 #include <climits>
 #include <cstdlib>
@@ -53,92 +54,6 @@ constexpr int kTagWork = 1, kTagResult = 2, kTagFault = 3;
 constexpr double kFault = -1;    // the range failed: has_rows, first, last follow; the message under kTagFault
 constexpr double kSkipped = -2;  // not evaluated: this rank reported a fault earlier in the batch
 constexpr std::size_t kFaultBytes = 4096;
-constexpr int kExitWorkerFailure = 3;
-constexpr std::size_t kHostBytes = 64;
-
-bool g_initialised = false, g_released = false;
-int g_rank = 0, g_size = 1;
-
-struct PeerInfo {
-  std::int64_t pid = 0;
-  char host[kHostBytes] = {0};
-};
-
-// Read by the SIGTERM handler of rank 0: plain arrays, filled before the handler is installed.
-std::vector<PeerInfo> g_peers;
-char g_status_file[4096] = {0};
-char g_status_tmp[4200] = {0};
-char g_run_dir[4096] = {0};
-
-// Async-signal-safe helpers for the handler.
-void put(char* buf, std::size_t cap, std::size_t& len, const char* s) {
-  while (*s && len + 1 < cap) buf[len++] = *s++;
-  buf[len] = 0;
-}
-void put_int(char* buf, std::size_t cap, std::size_t& len, long long v) {
-  char digits[24];
-  int n = 0;
-  if (v < 0) {
-    put(buf, cap, len, "-");
-    v = -v;
-  }
-  do {
-    digits[n++] = static_cast<char>('0' + v % 10);
-    v /= 10;
-  } while (v > 0 && n < 23);
-  char out[24];
-  for (int i = 0; i < n; ++i) out[i] = digits[n - 1 - i];
-  out[n] = 0;
-  put(buf, cap, len, out);
-}
-
-void on_sigterm(int) {
-  int dead = -1;
-  for (std::size_t r = 1; r < g_peers.size(); ++r)
-    if (std::strncmp(g_peers[r].host, g_peers[0].host, kHostBytes) == 0 &&
-        ::kill(static_cast<pid_t>(g_peers[r].pid), 0) != 0 && errno == ESRCH) {
-      dead = static_cast<int>(r);
-      break;
-    }
-  char what[512];
-  std::size_t wl = 0;
-  if (dead > 0) {
-    put(what, sizeof(what), wl, "MPI worker rank ");
-    put_int(what, sizeof(what), wl, dead);
-    put(what, sizeof(what), wl, " (pid ");
-    put_int(what, sizeof(what), wl, g_peers[static_cast<std::size_t>(dead)].pid);
-    put(what, sizeof(what), wl, " on ");
-    put(what, sizeof(what), wl, g_peers[static_cast<std::size_t>(dead)].host);
-    put(what, sizeof(what), wl, ") died and mpirun ended the job");
-  } else {
-    put(what, sizeof(what), wl,
-        "terminated by SIGTERM (mpirun does this when a rank on another host dies, or the job was cancelled)");
-  }
-  char status[1024];
-  std::size_t sl = 0;
-  put(status, sizeof(status), sl, "failed: ");
-  put(status, sizeof(status), sl, what);
-  put(status, sizeof(status), sl, " (the last checkpoint is intact; fix the cause and --resume)\n");
-  const int fd = ::open(g_status_tmp, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  if (fd >= 0) {
-    if (::write(fd, status, sl) == static_cast<ssize_t>(sl)) ::rename(g_status_tmp, g_status_file);
-    ::close(fd);
-  }
-  char line[1024 + 4096];
-  std::size_t ll = 0;
-  put(line, sizeof(line), ll, "qdrun: error: ");
-  put(line, sizeof(line), ll, what);
-  put(line, sizeof(line), ll, "; the last checkpoint is intact: qdrun --resume ");
-  put(line, sizeof(line), ll, g_run_dir);
-  put(line, sizeof(line), ll, "\n");
-  if (::write(STDERR_FILENO, line, ll) < 0) {
-  }
-  ::_exit(kExitWorkerFailure);
-}
-
-double now_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 // Polls: spins for 200 us (rank 0 between batches usually answers within that), then sleeps
 // 50 us doubling to `longest`, so idle ranks leave the cores to rank 0's training. Transfers in
@@ -182,7 +97,7 @@ int as_count(std::size_t n) {
 std::string rank_label() {
   char host[kHostBytes] = {0};
   ::gethostname(host, kHostBytes - 1);
-  return "MPI rank " + std::to_string(g_rank) + " on " + host + ": ";
+  return "MPI rank " + std::to_string(mpi_rank()) + " on " + host + ": ";
 }
 
 // A fault of a rank's worker process, as ProcessEvaluator reported it: an EvaluationFault for
@@ -225,24 +140,16 @@ class MpiEvaluator final : public Evaluator {
         // Forked first, before the signal handlers below and any traffic of this evaluator; it
         // holds the largest range of a batch of `capacity` rows.
         own_(env, desc, shape, 1,
-             largest_chunk(std::max<std::size_t>(spec.capacity, 1), static_cast<std::size_t>(g_size)),
+             largest_chunk(std::max<std::size_t>(spec.capacity, 1), static_cast<std::size_t>(mpi_size())),
              spec.timeout_seconds, spec.labels, rank_label()) {
     PeerInfo me;
     me.pid = ::getpid();
     ::gethostname(me.host, kHostBytes - 1);
-    std::vector<PeerInfo> all(static_cast<std::size_t>(g_rank == 0 ? g_size : 0));
+    std::vector<PeerInfo> all(static_cast<std::size_t>(mpi_rank() == 0 ? mpi_size() : 0));
     check(MPI_Gather(&me, sizeof(PeerInfo), MPI_BYTE, all.data(), sizeof(PeerInfo), MPI_BYTE, 0, MPI_COMM_WORLD),
           "MPI start-up handshake");
-    if (g_rank == 0) {
-      g_peers = std::move(all);
-      const std::string dir = spec.status_file.substr(0, spec.status_file.rfind('/'));
-      std::snprintf(g_status_file, sizeof(g_status_file), "%s", spec.status_file.c_str());
-      std::snprintf(g_status_tmp, sizeof(g_status_tmp), "%s.tmp", spec.status_file.c_str());
-      std::snprintf(g_run_dir, sizeof(g_run_dir), "%s", dir.c_str());
-      struct sigaction sa {};
-      sa.sa_handler = on_sigterm;
-      sigemptyset(&sa.sa_mask);
-      ::sigaction(SIGTERM, &sa, &previous_);
+    if (mpi_rank() == 0) {
+      mpi_report_termination(std::move(all), spec.status_file, &previous_);
     } else {
       // mpirun sends SIGTERM to every rank when one dies; workers stay until its SIGKILL, so the
       // only dead worker rank 0 finds is the one that failed.
@@ -254,31 +161,31 @@ class MpiEvaluator final : public Evaluator {
   }
 
   ~MpiEvaluator() override {
-    if (g_rank == 0 && !stopped_) {
+    if (mpi_rank() == 0 && !stopped_) {
       // Tell the workers to leave serve(); bounded, since a hung worker never joins the broadcast.
       // Once they have it, every rank may finalise MPI normally (mpi_workers_released).
       try {
         std::uint64_t hdr[2] = {0, 0};
         broadcast(hdr, 2, MPI_UINT64_T, 5.0);
-        g_released = true;
+        mpi_mark_workers_released();
       } catch (...) {
       }
     }
     ::sigaction(SIGTERM, &previous_, nullptr);
   }
 
-  int workers() const noexcept override { return g_size; }
+  int workers() const noexcept override { return mpi_size(); }
   const char* backend() const noexcept override { return "mpi"; }
 
   void evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, std::uint64_t /*first_episode*/,
                 Evaluations& out) override {
     const auto n = static_cast<std::size_t>(params.rows());
     QD_CHECK(seeds.size() == n, "one episode seed per row");
-    QD_CHECK(g_rank == 0, "only rank 0 runs the loop");
+    QD_CHECK(mpi_rank() == 0, "only rank 0 runs the loop");
     if (stopped_) throw WorkerFailure("the MPI workers were stopped after an earlier failure");
     out.reset(n, dims_);
     if (n == 0) return;
-    const auto size = static_cast<std::size_t>(g_size);
+    const auto size = static_cast<std::size_t>(mpi_size());
     const std::size_t largest = largest_chunk(n, size);
     // Rank 0 drives the broadcasts to completion before it evaluates (a large broadcast moves in
     // segments, each needing rank 0 inside MPI). If a worker never joins, they stay in flight
@@ -409,7 +316,7 @@ class MpiEvaluator final : public Evaluator {
   }
 
   void serve() override {
-    if (g_rank == 0) return;
+    if (mpi_rank() == 0) return;
     std::vector<double> params, outbox;
     std::vector<std::uint64_t> seeds;
     for (;;) {
@@ -516,7 +423,7 @@ class MpiEvaluator final : public Evaluator {
 
   [[noreturn]] void hung(int rank) {
     stopped_ = true;
-    const auto& p = g_peers.at(static_cast<std::size_t>(rank));
+    const auto& p = mpi_peer(rank);
     throw WorkerFailure("MPI worker rank " + std::to_string(rank) + " (pid " + std::to_string(p.pid) + " on " + p.host +
                         ") made no progress for " + std::to_string(static_cast<long long>(timeout_)) +
                         " s ([evaluation] timeout_seconds) and reported no fault in " +
@@ -533,51 +440,6 @@ class MpiEvaluator final : public Evaluator {
 };
 
 }  // namespace
-
-bool mpi_built() noexcept {
-  return true;
-}
-
-bool mpi_launched() noexcept {
-  for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", "PMI_SIZE"})
-    if (std::getenv(v)) return true;
-  return false;
-}
-
-void mpi_start(int* argc, char*** argv) {
-  if (!mpi_launched() || g_initialised) return;
-  int provided = 0;
-  // Funneled: representations may train with OpenMP threads, but only the main thread calls MPI.
-  if (MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) throw Error("MPI_Init_thread failed");
-  g_initialised = true;
-  MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN);
-  MPI_Comm_rank(MPI_COMM_WORLD, &g_rank);
-  MPI_Comm_size(MPI_COMM_WORLD, &g_size);
-}
-
-bool mpi_active() noexcept {
-  return g_initialised;
-}
-bool mpi_workers_released() noexcept {
-  return g_released;
-}
-int mpi_rank() noexcept {
-  return g_rank;
-}
-int mpi_size() noexcept {
-  return g_size;
-}
-
-void mpi_stop() noexcept {
-  int finalized = 0;
-  MPI_Finalized(&finalized);
-  if (g_initialised && !finalized) MPI_Finalize();
-}
-
-void mpi_abort(int code) noexcept {
-  if (g_initialised) MPI_Abort(MPI_COMM_WORLD, code);
-  std::_Exit(code);
-}
 
 std::unique_ptr<Evaluator> make_mpi_evaluator(const EvaluatorSpec& spec, const Environment& env, const Descriptor& desc,
                                               const PolicyShape& shape) {

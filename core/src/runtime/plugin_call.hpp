@@ -1,5 +1,5 @@
 // Which plugin code a thread of qdrun's process is running. The guards for fatal signals and exit()
-// in qdrun's own process (app/crash_guard.cpp) name the component and call from it.
+// in qdrun's own process (core/app/run_guard.cpp) name the component and call from it.
 #pragma once
 
 #include <string>

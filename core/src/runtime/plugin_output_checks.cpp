@@ -1,6 +1,6 @@
 #include "runtime/plugin_output_checks.hpp"
 
-#include "runtime/csv.hpp"
+#include "runtime/number_text.hpp"
 
 #include <cmath>
 #include <cstdio>

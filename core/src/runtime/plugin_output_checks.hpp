@@ -61,7 +61,6 @@ class CheckedRepresentation final : public Representation {
   void decoder_jacobians(const Matrix& z, std::vector<Matrix>& jacobians) const override;
   void decoder_vjp(const Matrix& z, const Matrix& v, Matrix& out) const override;
   void reconstruction_errors(const Matrix& theta, Vector& errors) const override;
-  std::vector<std::string> log_files() const override { return c_.representation->log_files(); }
   void save(std::ostream& out) const override { c_.representation->save(out); }
   void load(std::istream& in) override { c_.representation->load(in); }
 

@@ -1,5 +1,7 @@
 #include "runtime/process_evaluator.hpp"
 
+#include "runtime/clock.hpp"
+
 #include <poll.h>
 #include <sched.h>
 #include <signal.h>
@@ -12,7 +14,6 @@
 #include <array>
 #include <atomic>
 #include <cerrno>
-#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <new>
@@ -27,10 +28,6 @@ constexpr std::size_t kMaxWorkers = 4096;  // [evaluation] workers' upper bound
 
 std::size_t round_up(std::size_t bytes) {
   return (bytes + 63) / 64 * 64;
-}
-
-double now_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 // Why a reaped child ended, for the one-line error.

@@ -18,6 +18,7 @@
 // signal's default action, not a handler the parent installed (MPI prints backtraces).
 #pragma once
 
+#include "runtime/batch_protocol.hpp"
 #include "runtime/evaluator.hpp"
 
 #include <sys/types.h>

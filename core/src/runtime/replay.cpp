@@ -1,7 +1,9 @@
 #include "runtime/replay.hpp"
 
 #include "runtime/archive_csv.hpp"
-#include "runtime/csv.hpp"
+#include "runtime/number_text.hpp"
+#include "runtime/run_files.hpp"
+#include "runtime/worker_pool.hpp"
 
 #include <qd/errors.hpp>
 

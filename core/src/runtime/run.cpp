@@ -1,7 +1,9 @@
 #include "runtime/run.hpp"
 
 #include "runtime/archive_csv.hpp"
-#include "runtime/csv.hpp"
+#include "runtime/clock.hpp"
+#include "runtime/number_text.hpp"
+#include "runtime/run_files.hpp"
 
 #include <qd/errors.hpp>
 #include <qd/version.hpp>
@@ -9,7 +11,6 @@
 #include <malloc.h>
 #include <unistd.h>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <ctime>
@@ -20,10 +21,6 @@ namespace qd::runtime {
 namespace fs = std::filesystem;
 
 namespace {
-
-double now_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 std::string utc_now() {
   const std::time_t t = std::time(nullptr);
@@ -105,7 +102,7 @@ std::unique_ptr<Evaluator> make_run_evaluator(const Experiment& ex, const Compon
   check_memory(s, c);
   EvaluatorSpec spec;
   spec.workers = opt.workers > 0 ? opt.workers : (s.workers > 0 ? s.workers : hardware_workers());
-  spec.backend = opt.backend.empty() ? s.backend : opt.backend;
+  spec.backend = s.backend;
   spec.capacity = static_cast<std::size_t>(std::max(s.batch, s.initial_samples));
   spec.timeout_seconds = s.timeout_seconds;
   spec.status_file = (dir / "status").string();
@@ -129,7 +126,11 @@ Run::Run(Experiment experiment, const Registry& registry, RunOptions options)
       dataset_(c_.shape.param_count()),
       dir_(run_directory_of(ex_.settings, opt_)),
       checkpoints_(dir_.path(), c_.shape.param_count(), c_.grid.dims()),
-      loop_(ex_.settings, c_, *evaluator_, archive_, dataset_, *this, dir_.path().string()) {}
+      loop_(ex_.settings, c_, *evaluator_, archive_, dataset_, *this) {
+  const auto& names = c_.metric_names;
+  const auto mixing = std::find(names.begin(), names.end(), kMixingRatio);
+  if (mixing != names.end()) mixing_metric_ = static_cast<std::size_t>(mixing - names.begin());
+}
 
 Run::~Run() = default;
 
@@ -137,7 +138,8 @@ void Run::create_directory() {
   std::string header =
       "loop,iteration,evaluations,elites,coverage,qd_score,max_fitness,mean_fitness,mixing_ratio,added,replaced,"
       "invalid,wall_seconds,train_seconds";
-  for (const auto& n : c_.metric_names) header += "," + n;
+  for (std::size_t k = 0; k < c_.metric_names.size(); ++k)
+    if (k != mixing_metric_) header += "," + c_.metric_names[k];
   restarted_ = dir_.create(ex_.resolved_toml, header);
   if (opt_.on_start) opt_.on_start();
   dir_.set_status("running");
@@ -179,8 +181,28 @@ void Run::open_for_inspection() {
 
 std::vector<std::string> Run::log_names() const {
   std::vector<std::string> names = {"metrics.csv", "training.csv"};
-  for (const std::string& name : c_.representation->log_files()) names.push_back(name);
+  names.insert(names.end(), training_logs_.begin(), training_logs_.end());
   return names;
+}
+
+void Run::append(const std::string& name, const std::string& header, const std::string& rows) {
+  bool restart = false;
+  if (std::find(training_logs_.begin(), training_logs_.end(), name) == training_logs_.end()) {
+    if (!is_training_log_name(name))
+      throw PluginError(c_.representation_label + " asked to log to '" + name +
+                        "': a training log is a plain file name ending in .csv that is not one of the run's own "
+                        "files");
+    training_logs_.push_back(name);
+    // In a resumed run no checkpoint vouches for a file of this name already there (a session
+    // that stopped before its next checkpoint wrote it): the log starts again.
+    restart = resumed_;
+  }
+  try {
+    dir_.append_log(name, header, rows, restart);
+  } catch (...) {
+    log_failure_ = std::current_exception();  // fails the run even if fit() swallows it
+    throw;
+  }
 }
 
 void Run::load_checkpoint(bool resuming) {
@@ -215,6 +237,9 @@ void Run::load_checkpoint(bool resuming) {
                        std::to_string(n.evaluations) + " evaluations, " + std::to_string(archive_.size()) +
                        " elites, " + std::to_string(dataset_.size()) + " dataset rows)");
     if (resuming) {
+      resumed_ = true;
+      for (const LogSize& log : loaded.logs)  // the representation's logs the checkpoint vouches for
+        if (log.name != "metrics.csv" && log.name != "training.csv") training_logs_.push_back(log.name);
       dir_.cut_logs(loaded.logs, log_names());
       const std::size_t rows = dir_.count_lines("metrics.csv"),
                         want = 2 + static_cast<std::size_t>(n.loop) * s.iterations;
@@ -297,7 +322,9 @@ void Run::iteration_done(const IterationOutcome& o) {
     if (!std::isnan(v)) append_number(row, v);
   }
   row += ',';
-  if (!std::isnan(o.offspring->mixing_ratio)) append_number(row, o.offspring->mixing_ratio);
+  const std::vector<double>& metrics = o.offspring->metrics;
+  if (mixing_metric_ < metrics.size() && !std::isnan(metrics[mixing_metric_]))
+    append_number(row, metrics[mixing_metric_]);
   for (const std::size_t v : {o.added, o.replaced, o.invalid}) {
     row += ',';
     append_int(row, static_cast<std::int64_t>(v));
@@ -307,8 +334,9 @@ void Run::iteration_done(const IterationOutcome& o) {
   row += ',';
   append_number(row, train_seconds_);
   for (std::size_t k = 0; k < c_.metric_names.size(); ++k) {
+    if (k == mixing_metric_) continue;
     row += ',';
-    if (k < o.offspring->metrics.size()) append_number(row, o.offspring->metrics[k]);
+    if (k < metrics.size()) append_number(row, metrics[k]);
   }
   row += '\n';
   dir_.append_metrics(row);
@@ -320,6 +348,7 @@ void Run::training_started(int loop) {
 }
 
 void Run::training_done(int loop, const FitReport& r, double seconds) {
+  if (log_failure_) std::rethrow_exception(log_failure_);
   train_seconds_ += seconds;
   std::string row;
   append_int(row, loop);
@@ -332,6 +361,32 @@ void Run::training_done(int loop, const FitReport& r, double seconds) {
   row += r.stopped_early ? ",1," : ",0,";
   append_number(row, seconds);
   dir_.append_training(row + "\n");
+}
+
+std::string Run::fault_offspring(int loop, int it, std::size_t first, std::size_t last, const Matrix& theta,
+                                 const std::vector<std::uint64_t>& seeds) {
+  const std::string path = dir_.path().string() + "/fault-offspring.csv";
+  std::string text = "loop,iteration,offspring,episode_seed";
+  for (Eigen::Index p = 0; p < theta.cols(); ++p) text += ",solution_" + std::to_string(p);
+  text += '\n';
+  for (std::size_t k = first; k <= last; ++k) {
+    for (const std::int64_t v : {std::int64_t{loop}, std::int64_t{it}, static_cast<std::int64_t>(k)}) {
+      append_int(text, v);
+      text += ',';
+    }
+    text += std::to_string(seeds[k]);
+    for (Eigen::Index p = 0; p < theta.cols(); ++p) {
+      text += ',';
+      append_number(text, theta(static_cast<Eigen::Index>(k), p));
+    }
+    text += '\n';
+  }
+  try {
+    write_file_atomic(path, text);
+  } catch (const std::exception&) {
+    return "";  // the fault itself is what the user must see
+  }
+  return path;
 }
 
 void Run::write_provenance() const {

@@ -3,17 +3,19 @@
 // resumes from its last checkpoint bit-identically.
 #pragma once
 
-#include "runtime/archive.hpp"
 #include "runtime/checkpoint.hpp"
 #include "runtime/components.hpp"
 #include "runtime/evaluator.hpp"
 #include "runtime/experiment.hpp"
+#include "runtime/grid_archive.hpp"
 #include "runtime/map_elites.hpp"
+#include "runtime/mpi_session.hpp"
 #include "runtime/registry.hpp"
 #include "runtime/run_directory.hpp"
 
 #include <qd/dataset.hpp>
 
+#include <exception>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -42,7 +44,6 @@ void tune_allocator();
 
 struct RunOptions {
   int workers = 0;           // 0 = from the experiment (then all cores)
-  std::string backend;       // empty = from the experiment
   int stop_after_loop = -1;  // stop cleanly after this loop's checkpoint (-1 = run to the end)
   std::string directory;     // run directory; empty = <output>/<name>/seed-<seed>
   std::string command_line;
@@ -52,7 +53,7 @@ struct RunOptions {
   std::function<void()> on_start;
 };
 
-class Run final : private LoopObserver {
+class Run final : private LoopObserver, private TrainingLog {
  public:
   // Builds every component (plugin factories run here). Throws qd::InputError / ConfigError /
   // PluginError for bad input; creates nothing on disk.
@@ -91,6 +92,12 @@ class Run final : private LoopObserver {
   void iteration_done(const IterationOutcome& outcome) override;
   void training_started(int loop) override;
   void training_done(int loop, const FitReport& report, double seconds) override;
+  TrainingLog* training_log() override { return this; }
+  // TrainingLog: the representation's logs, kept by the run directory and cut back on resume.
+  void append(const std::string& name, const std::string& header, const std::string& rows) override;
+  // Writes fault-offspring.csv; returns its path, or "" when that fails.
+  std::string fault_offspring(int loop, int iteration, std::size_t first, std::size_t last, const Matrix& theta,
+                              const std::vector<std::uint64_t>& seeds) override;
   // Loads and verifies the checkpoint; `resuming` also checks the configuration against the
   // checkpoint's and cuts the logs back to it.
   void load_checkpoint(bool resuming);
@@ -120,6 +127,11 @@ class Run final : private LoopObserver {
   double train_seconds_ = 0.0;
   double session_start_ = 0.0;
   std::string metrics_row_;
+  std::vector<std::string> training_logs_;  // the representation's logs, in the order first written
+  std::exception_ptr log_failure_;          // a failed write to one of them
+  bool resumed_ = false;                    // this session continues from a checkpoint
+  // The mutator's kMixingRatio metric, written in metrics.csv's mixing_ratio column (npos: none).
+  std::size_t mixing_metric_ = static_cast<std::size_t>(-1);
 };
 
 }  // namespace qd::runtime

@@ -363,6 +363,37 @@ void RunDirectory::cut_logs(const std::vector<LogSize>& sizes, const std::vector
   }
 }
 
+bool is_training_log_name(const std::string& name) {
+  static const char* const kOwn[] = {"metrics.csv", "training.csv", "archive.csv", "centroids.csv",
+                                     "fault-offspring.csv"};
+  if (name.size() < 5 || name.size() > 128 || name[0] == '.' || name.compare(name.size() - 4, 4, ".csv") != 0)
+    return false;
+  for (const char c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' && c != '-') return false;
+  return std::none_of(std::begin(kOwn), std::end(kOwn), [&](const char* own) { return name == own; });
+}
+
+void RunDirectory::append_log(const std::string& name, const std::string& header, const std::string& rows,
+                              bool restart) {
+  const fs::path path = dir_ / name;
+  std::error_code ec;
+  if (restart) fs::remove(path, ec);
+  // Opened as the representations opened their logs before the core owned them (a symlink is
+  // followed; log_sizes() makes the file private at the next checkpoint), one write per call.
+  const int fd = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) throw SystemError("cannot write " + path.string() + ": " + std::strerror(errno));
+  struct stat st;
+  const bool fresh = ::fstat(fd, &st) != 0 || st.st_size == 0;
+  const std::string text = fresh ? header + rows : rows;
+  try {
+    write_all(fd, text.data(), text.size(), path);
+  } catch (...) {
+    ::close(fd);
+    throw;
+  }
+  ::close(fd);
+}
+
 std::size_t RunDirectory::count_lines(const std::string& name) const {
   if (!exists_nofollow(dir_ / name)) return 0;
   const std::string text = read_run_file(dir_ / name, kMaxLogBytes);

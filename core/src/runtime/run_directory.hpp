@@ -8,7 +8,7 @@
 #pragma once
 
 #include "runtime/checkpoint.hpp"
-#include "runtime/csv.hpp"
+#include "runtime/run_files.hpp"
 
 #include <filesystem>
 #include <string>
@@ -27,6 +27,10 @@ enum class Leftover {
   kUnfinishedStart,  // a run that stopped before its first checkpoint: a restart loses nothing
   kResults,          // results without a checkpoint: never deleted, never resumed
 };
+
+// Whether `name` may be a representation's training log (TrainingLog::append): a plain file name
+// ending in ".csv", none of the run's own files.
+bool is_training_log_name(const std::string& name);
 
 class RunDirectory {
  public:
@@ -70,6 +74,10 @@ class RunDirectory {
 
   void append_metrics(const std::string& row) { metrics_.append(row); }
   void append_training(const std::string& row) { training_.append(row); }
+  // Appends `rows` to the representation's log `name` (is_training_log_name), `header` first when
+  // the log is new or empty; `restart` removes a file of that name first. SystemError when the
+  // write fails.
+  void append_log(const std::string& name, const std::string& header, const std::string& rows, bool restart);
 
   // The sizes and CRC-32C of the logs the run appends to (`names`: metrics.csv, training.csv and
   // the representation's), those that exist, for a checkpoint. Each log is made private first

@@ -80,7 +80,6 @@ TEST(Lp, InfoDeclaresAPlainVectorWithFitness) {
   EXPECT_EQ(info.parameters, 100);
   EXPECT_TRUE(info.has_fitness);
   EXPECT_TRUE(std::isnan(info.fitness_lower_bound));
-  EXPECT_EQ(info.default_descriptor, "lp-measures");
 }
 
 // The grid spans +-5.12 n/2 per measure; its corners and centre land where a 100 x 100 grid puts them.

@@ -84,7 +84,6 @@ TEST(StrikerEnvironment, InfoAndDefaults) {
   EXPECT_EQ(info.observation_size, 14);
   EXPECT_EQ(info.action_size, 3);
   EXPECT_EQ(info.max_steps, 1000);
-  EXPECT_EQ(info.default_descriptor, "striker-contacts");
   EXPECT_FALSE(env.options().mix_scale);
   EXPECT_FALSE(env.options().puck_hits_target);
 }

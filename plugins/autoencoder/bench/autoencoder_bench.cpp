@@ -84,7 +84,7 @@ int main(int argc, char** argv) {
   for (int threads : {1, 2}) {
     {
       Autoencoder warm(bench_hyper(threads, 1), p, 42);
-      warm.fit(data, qd::FitContext{0, 7, ""});  // warm-up epoch (page faults, thread pool)
+      warm.fit(data, qd::FitContext{0, 7});  // warm-up epoch (page faults, thread pool)
       weights_by_threads[threads - 1] = warm.model().weights();
     }
     // Per epoch = (fit of `epochs` epochs - fit of 0 epochs) / epochs: a fit also converts the
@@ -95,10 +95,10 @@ int main(int argc, char** argv) {
     double best_fit = 1e300, best_setup = 1e300;
     for (int rep = 0; rep < 3; ++rep) {
       auto t0 = Clock::now();
-      setup_only.fit(data, qd::FitContext{0, 7, ""});
+      setup_only.fit(data, qd::FitContext{0, 7});
       best_setup = std::min(best_setup, ms_since(t0));
       t0 = Clock::now();
-      ae.fit(data, qd::FitContext{0, 7, ""});
+      ae.fit(data, qd::FitContext{0, 7});
       best_fit = std::min(best_fit, ms_since(t0));
     }
     const double best = (best_fit - best_setup) / epochs;
@@ -110,7 +110,7 @@ int main(int argc, char** argv) {
   // ---- latent offspring ----------------------------------------------------------------------
   {
     Autoencoder ae(bench_hyper(1, 1), p, 42);
-    ae.fit(data, qd::FitContext{0, 7, ""});
+    ae.fit(data, qd::FitContext{0, 7});
     const qd::Matrix theta = data.params().topRows(parents);
     qd::Matrix z, xi(parents, p), step, child;
     double best = 1e300, best_noise = 1e300;
@@ -138,7 +138,7 @@ int main(int argc, char** argv) {
     Hyper h = bench_hyper(rthreads, repochs);  // 0 = the plugin's default (all cores)
     Autoencoder ae(h, rp, 42);
     const auto t0 = Clock::now();
-    const qd::FitReport r = ae.fit(real, qd::FitContext{1, 7, ""});  // loop 1: oldest 30 % test, early stop
+    const qd::FitReport r = ae.fit(real, qd::FitContext{1, 7});  // loop 1: oldest 30 % test, early stop
     const double ms = ms_since(t0);
     std::printf("realistic_threads %d\n", rthreads);
     std::printf("realistic_epochs %d\n", r.epochs);

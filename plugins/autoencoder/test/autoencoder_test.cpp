@@ -3,6 +3,7 @@
 #include <qd/errors.hpp>
 #include <qd/policy.hpp>
 #include <qd/testing/conformance.hpp>
+#include <qd/testing/training_log.hpp>
 
 #include <gtest/gtest.h>
 
@@ -53,7 +54,7 @@ TEST(AutoencoderJacobian, ClosedFormMatchesCentralDifferences) {
   hyper.learning_rate = 1e-3;
   Autoencoder ae(hyper, P, 7);
   // Train a little so that the biases are non-zero (both ELU branches, away from the kink).
-  ae.fit(make_dataset(random_matrix(40, P, 1)), qd::FitContext{0, 1, ""});
+  ae.fit(make_dataset(random_matrix(40, P, 1)), qd::FitContext{0, 1});
   const Matrix z = random_matrix(5, 4, 2);
   std::vector<Matrix> jac;
   ae.decoder_jacobians(z, jac);
@@ -107,7 +108,7 @@ TEST(AutoencoderTraining, LearnsLowRankData) {
   qd::Vector err;
   ae.reconstruction_errors(x, err);
   const double before = err.squaredNorm() / static_cast<double>(N);
-  const qd::FitReport r = ae.fit(make_dataset(x), qd::FitContext{0, 5, ""});
+  const qd::FitReport r = ae.fit(make_dataset(x), qd::FitContext{0, 5});
   ae.reconstruction_errors(x, err);
   const double after = err.squaredNorm() / static_cast<double>(N);
   EXPECT_EQ(r.epochs, 150);
@@ -159,7 +160,7 @@ TEST(AutoencoderAdam, ResetBetweenFits) {
   Autoencoder ae(h, P, 4);
   const std::vector<double> initial = ae.model().weights();
   const qd::Dataset d = make_dataset(random_matrix(100, P, 5));  // 2 batches per epoch (64 + 36)
-  ae.fit(d, qd::FitContext{0, 1, ""});
+  ae.fit(d, qd::FitContext{0, 1});
   EXPECT_EQ(ae.model().adam_steps(), 6);
   const std::vector<double> after_first = ae.model().weights();
   EXPECT_NE(after_first, initial);
@@ -174,14 +175,14 @@ TEST(AutoencoderAdam, ResetBetweenFits) {
   std::stringstream blob;
   ae.save(blob);
   probe.load(blob);
-  probe.fit(d, qd::FitContext{1, 1, ""});
+  probe.fit(d, qd::FitContext{1, 1});
   EXPECT_EQ(probe.model().adam_steps(), 0);
   moments = probe.model().adam_moments();
   for (double m : moments) ASSERT_EQ(m, 0.0);
   EXPECT_EQ(probe.model().weights(), after_first);
 
   // And a 3-epoch second fit counts its steps from zero again.
-  ae.fit(d, qd::FitContext{0, 1, ""});
+  ae.fit(d, qd::FitContext{0, 1});
   EXPECT_EQ(ae.model().adam_steps(), 6);
 }
 
@@ -195,7 +196,7 @@ TEST(AutoencoderTraining, ResultsDoNotDependOnThreadCount) {
     h.learning_rate = 1e-3;
     h.threads = threads;
     Autoencoder ae(h, P, 5);
-    ae.fit(d, qd::FitContext{1, 9, ""});
+    ae.fit(d, qd::FitContext{1, 9});
     weights[threads - 1] = ae.model().weights();
   }
   EXPECT_EQ(weights[0], weights[1]);
@@ -222,7 +223,7 @@ TEST(AutoencoderState, SaveLoadIsBitExactAndChecksShape) {
     h.max_epochs = 2;
     h.learning_rate = 1e-3;
     Autoencoder a(h, P, 11);
-    a.fit(make_dataset(random_matrix(70, P, 6)), qd::FitContext{0, 2, ""});
+    a.fit(make_dataset(random_matrix(70, P, 6)), qd::FitContext{0, 2});
     std::stringstream blob;
     a.save(blob);
     Autoencoder b(h, P, 12);  // other seed: other weights until loaded
@@ -284,14 +285,12 @@ TEST(AutoencoderSplit, FitReportsTestLossOfFirstEntriesAndLogs) {
   Autoencoder ae(h, P, 21);
   const Matrix x = random_matrix(N, P, 8);
   const qd::Dataset d = make_dataset(x);
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "autoencoder_split_test";
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
+  qd::testing::MemoryLog log;
 
-  const qd::FitReport r0 = ae.fit(d, qd::FitContext{0, 3, dir.string()});
+  const qd::FitReport r0 = ae.fit(d, qd::FitContext{0, 3, &log});
   EXPECT_EQ(r0.epochs, 4);
   EXPECT_TRUE(std::isnan(r0.test_loss));
-  const qd::FitReport r1 = ae.fit(d, qd::FitContext{1, 3, dir.string()});
+  const qd::FitReport r1 = ae.fit(d, qd::FitContext{1, 3, &log});
   EXPECT_EQ(r1.epochs, 4);
   qd::Vector err;
   ae.reconstruction_errors(x.topRows(12), err);
@@ -299,7 +298,7 @@ TEST(AutoencoderSplit, FitReportsTestLossOfFirstEntriesAndLogs) {
   ae.reconstruction_errors(x.bottomRows(N - 12), err);
   EXPECT_GT(std::abs(r1.test_loss - err.squaredNorm() / static_cast<double>(N - 12)), 1e-9);
 
-  std::ifstream in(dir / "losses.csv");
+  std::istringstream in(log.text("losses.csv"));
   std::vector<std::string> lines;
   for (std::string line; std::getline(in, line);) lines.push_back(line);
   ASSERT_EQ(lines.size(), 9u);
@@ -308,7 +307,6 @@ TEST(AutoencoderSplit, FitReportsTestLossOfFirstEntriesAndLogs) {
   EXPECT_EQ(lines[1].back(), ',');  // loop 0: no test loss
   EXPECT_EQ(lines[5].rfind("1,0,", 0), 0u);
   EXPECT_NE(lines[8].back(), ',');
-  std::filesystem::remove_all(dir);
 }
 
 TEST(AutoencoderConfig, LatentLargerThanParamsIsAConfigError) {

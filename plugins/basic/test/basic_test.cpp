@@ -87,7 +87,7 @@ TEST(Samplers, IsoAddsGaussianNoiseOfStdSigma) {
   const double n = static_cast<double>(d.size());
   EXPECT_NEAR(d.mean(), 0.0, 5 * 0.3 / std::sqrt(n));
   EXPECT_NEAR(d.array().square().mean(), 0.09, 5 * 0.09 * std::sqrt(2.0 / n));
-  EXPECT_EQ(off.mixing_ratio, 1.0);
+  EXPECT_EQ(off.metrics, std::vector<double>{1.0});  // the mixing ratio
 }
 
 TEST(NoRepresentation, Conforms) {

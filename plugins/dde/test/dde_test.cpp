@@ -97,9 +97,9 @@ TEST(DdeArms, EachArmProducesItsSplitInOrder) {
     mctx.representation = &rep;
     qd::Offspring out;
     mutator.mutate(parents, n, mctx, out);
-    ASSERT_EQ(out.metrics.size(), 1u);
+    ASSERT_EQ(out.metrics.size(), 2u);
     EXPECT_EQ(out.metrics[0], static_cast<double>(arm));
-    EXPECT_EQ(out.mixing_ratio, static_cast<double>(arm) / 9.0);
+    EXPECT_EQ(out.metrics.at(1), static_cast<double>(arm) / 9.0);  // the mixing ratio
     ASSERT_EQ(out.theta.rows(), 200);
     ASSERT_EQ(out.latent.rows(), 200);
     const auto s = qd::dde::split_for_arm(arm, n);
@@ -335,7 +335,7 @@ TEST(DdeMutatorInfo, NeedsLatentAndNamesTheArmMetric) {
   const qd::BuildContext bctx;
   DdeMutator m(base_config(), bctx);
   EXPECT_TRUE(m.needs_latent());
-  EXPECT_EQ(m.metric_names(), (std::vector<std::string>{"arm"}));
+  EXPECT_EQ(m.metric_names(), (std::vector<std::string>{"arm", "mixing_ratio"}));
 }
 
 // The shipped conformance checks (qd/testing) for both bandit updates, over enough iterations for

@@ -39,7 +39,7 @@ TEST(LineDDMutator, ZeroSigmaOffspringIsThePartner) {
   qd::Offspring out;
   mutator.mutate(parents, n, mctx, out);
   ASSERT_EQ(out.theta.rows(), 37);
-  EXPECT_EQ(out.mixing_ratio, 1.0);
+  EXPECT_EQ(out.metrics, std::vector<double>{1.0});  // the mixing ratio
   std::vector<int> used(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
     const auto partner = static_cast<std::size_t>(out.theta(i, 0) / 10.0);

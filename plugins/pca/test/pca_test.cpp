@@ -6,6 +6,7 @@
 #include <qd/policy.hpp>
 #include <qd/rng.hpp>
 #include <qd/testing/conformance.hpp>
+#include <qd/testing/training_log.hpp>
 
 #include <gtest/gtest.h>
 #include <Eigen/SVD>
@@ -227,28 +228,26 @@ TEST(PcaTest, LatentLargerThanParameterCountIsConfigError) {
 }
 
 TEST(PcaTest, FitWritesExplainedVarianceCsv) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "qd_pca_test_csv";
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
   const Matrix data = low_rank(20, 6, 2, 29);
   qd::Dataset dataset(6);
   for (Eigen::Index i = 0; i < data.rows(); ++i) dataset.add(data.row(i).data(), i, 0);
   PcaRepresentation pca(2, 6);
+  qd::testing::MemoryLog log;
   qd::FitContext ctx;
-  ctx.run_dir = dir.string();
+  ctx.log = &log;
   for (int loop = 0; loop < 2; ++loop) {
     ctx.loop = loop;
     const qd::FitReport report = pca.fit(dataset, ctx);
     EXPECT_LT(report.train_loss, 1e-18 * data.squaredNorm() + 1e-20);
   }
-  std::ifstream in(dir / "pca.csv");
+  EXPECT_EQ(log.count(), 1u);
+  std::istringstream in(log.text("pca.csv"));
   std::string line;
   std::vector<std::string> lines;
   while (std::getline(in, line)) lines.push_back(line);
   ASSERT_EQ(lines.size(), 5u);  // header + 2 loops × 2 components
   EXPECT_EQ(lines[0], "loop,component,explained_variance_ratio");
   EXPECT_EQ(lines[3].rfind("1,0,", 0), 0u);
-  std::filesystem::remove_all(dir);
 }
 
 // The shipped conformance checks (qd/testing), built as the core builds it: from its table.

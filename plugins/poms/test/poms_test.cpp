@@ -190,7 +190,7 @@ TEST(PomsTest, LatentCovarianceIsSigmaJtJForNonLinearDecoder) {
     begin(mutator, archive, model);
     EXPECT_DOUBLE_EQ(mutator.threshold(), 1.0);
     const qd::Offspring out = run(mutator, parents, model, 1, 0, archive);
-    EXPECT_DOUBLE_EQ(out.mixing_ratio, 1.0 / static_cast<double>(n));
+    EXPECT_DOUBLE_EQ(out.metrics.at(1), 1.0 / static_cast<double>(n));
     const double factor = meaning == SigmaMeaning::kVariance ? sigma : sigma * sigma;
     const double other = meaning == SigmaMeaning::kVariance ? sigma * sigma : sigma;
     const double fit = max_standard_errors(out, 1, RowVector(z0.row(0)), factor * jtj);
@@ -246,8 +246,8 @@ TEST(PomsTest, LatentStepUsesTheTransposedJacobianOfASquareDecoder) {
   const double sigma = 0.2;
   PomsMutator mutator(sigma, SigmaMeaning::kVariance, ThresholdMode::kArchiveMean);
   begin(mutator, archive, model);
-  const qd::Offspring out = run(mutator, parents_of(parent.replicate(n, 1), std::vector<double>(n, 0.0)), model, 1,
-                                0, archive);
+  const qd::Offspring out =
+      run(mutator, parents_of(parent.replicate(n, 1), std::vector<double>(n, 0.0)), model, 1, 0, archive);
   EXPECT_LT(max_standard_errors(out, 1, RowVector(z0.row(0)), sigma * jtj), 5.0);
   EXPECT_GT(max_standard_errors(out, 1, RowVector(z0.row(0)), sigma * jjt), 5.0);
 }
@@ -308,10 +308,10 @@ TEST(PomsTest, SplitFollowsThresholdAndOrder) {
 
   const Matrix theta = distinct_parents(4, p);
   const qd::Offspring out = run(mutator, parents_of(theta, {0.5, 0.1, 0.9, 0.2}), model, 1, 3, archive);
-  EXPECT_DOUBLE_EQ(out.mixing_ratio, 0.5);
-  ASSERT_EQ(out.metrics.size(), 1u);
+  ASSERT_EQ(out.metrics.size(), 2u);
   EXPECT_DOUBLE_EQ(out.metrics[0], 0.3);
-  EXPECT_EQ(mutator.metric_names(), std::vector<std::string>{"threshold"});
+  EXPECT_DOUBLE_EQ(out.metrics[1], 0.5);  // the mixing ratio
+  EXPECT_EQ(mutator.metric_names(), (std::vector<std::string>{"threshold", "mixing_ratio"}));
   EXPECT_EQ(out.has_latent, (std::vector<std::uint8_t>{0, 0, 1, 1}));
   // H = {0, 2} first, in index order, as θ + σε (σ = 1e-8).
   EXPECT_LT((out.theta.row(0) - theta.row(0)).cwiseAbs().maxCoeff(), 1e-6);
@@ -338,13 +338,13 @@ TEST(PomsTest, AllBelowThresholdGivesHZeroAllAboveDropsLast) {
 
   EXPECT_EQ(mutator.parameter_space_set(Vector::Constant(4, 0.1)), std::vector<std::size_t>{0});
   const qd::Offspring below = run(mutator, parents_of(theta, {0.1, 0.2, 0.3, 0.0}), model, 1, 0, archive);
-  EXPECT_DOUBLE_EQ(below.mixing_ratio, 0.25);
+  EXPECT_DOUBLE_EQ(below.metrics.at(1), 0.25);
   EXPECT_EQ(below.has_latent, (std::vector<std::uint8_t>{0, 1, 1, 1}));
   EXPECT_LT((below.theta.row(0) - theta.row(0)).cwiseAbs().maxCoeff(), 1e-3);
 
   EXPECT_EQ(mutator.parameter_space_set(Vector::Constant(4, 0.9)), (std::vector<std::size_t>{0, 1, 2}));
   const qd::Offspring above = run(mutator, parents_of(theta, {0.4, 0.5, 0.6, 0.7}), model, 1, 0, archive);
-  EXPECT_DOUBLE_EQ(above.mixing_ratio, 0.75);
+  EXPECT_DOUBLE_EQ(above.metrics.at(1), 0.75);
   EXPECT_EQ(above.has_latent, (std::vector<std::uint8_t>{0, 0, 0, 1}));
   for (int i = 0; i < 3; ++i) EXPECT_LT((above.theta.row(i) - theta.row(i)).cwiseAbs().maxCoeff(), 1e-3);
   // Ties are not above the threshold (strict >).
@@ -371,7 +371,7 @@ TEST(PomsTest, RefreshedThresholdUsesCurrentModelErrors) {
   const qd::Offspring out = run(refreshed, parents_of(elites, {0.0, 0.0}), model, 1, 0, archive);
   const std::size_t above = current(0) > current(1) ? 0 : 1;
   EXPECT_EQ(refreshed.parameter_space_set(current), std::vector<std::size_t>{above});
-  EXPECT_DOUBLE_EQ(out.mixing_ratio, 0.5);
+  EXPECT_DOUBLE_EQ(out.metrics.at(1), 0.5);
 }
 
 TEST(PomsTest, DeterministicPerRngKey) {
@@ -439,7 +439,7 @@ TEST(PomsTest, NoJacobianUsesPopulationStdOfEncodedDataset) {
 
   const qd::Parents parents = parents_of(data.topRows(10), std::vector<double>(10, 5.0));
   const qd::Offspring out = run(mutator, parents, model, 1, 0, archive);
-  EXPECT_EQ(out.mixing_ratio, 0.0);
+  EXPECT_EQ(out.metrics, std::vector<double>{0.0});  // the mixing ratio
   EXPECT_EQ(out.has_latent, std::vector<std::uint8_t>(10, 1));
   Matrix decoded;
   model.decode(out.latent, decoded);

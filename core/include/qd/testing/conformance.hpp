@@ -596,9 +596,9 @@ inline Report check_descriptor(const Descriptor& d, const std::vector<Trace>& tr
 using RepresentationFactory = std::function<std::unique_ptr<Representation>()>;
 
 struct RepresentationOptions {
-  FitContext fit{0, 1, ""};  // passed to fit()
-  std::size_t rows = 8;      // the first `rows` rows of the dataset are encoded, decoded, ...
-  int threads = 3;           // concurrent callers of the const members
+  FitContext fit{0, 1};  // passed to fit()
+  std::size_t rows = 8;  // the first `rows` rows of the dataset are encoded, decoded, ...
+  int threads = 3;       // concurrent callers of the const members
   // Central differences of decode: step fd_step·max(1, |z_k|). The tolerances are relative:
   // ‖J − J_fd‖ ≤ jacobian_tolerance·‖J_fd‖ (Frobenius, per row), ‖vjp − vᵀJ‖ ≤ vjp_tolerance·‖vᵀJ‖,
   // |e − ‖θ − Dec(Enc(θ))‖| ≤ reconstruction_tolerance·max(1, ‖θ‖). The defaults suit models that
@@ -813,14 +813,14 @@ inline std::string difference(const Offspring& a, const Offspring& b) {
                             !same_bits(RowVector(a.latent.row(row)), RowVector(b.latent.row(row)))))
       return "latent";
   }
-  if (!same_bits(a.mixing_ratio, b.mixing_ratio)) return "mixing_ratio";
   if (!same_bits(a.metrics, b.metrics)) return "metrics";
   return "";
 }
 
 // The contract of one batch of offspring.
 inline void check_offspring(Report& r, const Offspring& out, std::size_t count, Eigen::Index p, int ld,
-                            std::size_t metrics, const std::string& where) {
+                            const std::vector<std::string>& names, const std::string& where) {
+  const std::size_t metrics = names.size();
   const auto n = static_cast<Eigen::Index>(count);
   if (!r.expect(out.theta.rows() == n && out.theta.cols() == p,
                 where + "theta is " + shape(out.theta.rows(), out.theta.cols()) + ", not count x P = " + shape(n, p)))
@@ -842,8 +842,10 @@ inline void check_offspring(Report& r, const Offspring& out, std::size_t count, 
   r.expect(out.metrics.size() == metrics,
            where + std::to_string(out.metrics.size()) + " metrics for " + std::to_string(metrics) + " metric_names()");
   r.expect(all_finite(out.metrics), where + "non-finite metrics");
-  r.expect(std::isnan(out.mixing_ratio) || (out.mixing_ratio >= 0.0 && out.mixing_ratio <= 1.0),
-           where + "mixing ratio " + str(out.mixing_ratio) + " is neither in [0, 1] nor NaN");
+  for (std::size_t k = 0; k < std::min(metrics, out.metrics.size()); ++k)
+    if (names[k] == kMixingRatio)
+      r.expect(out.metrics[k] >= 0.0 && out.metrics[k] <= 1.0,
+               where + "mixing ratio " + str(out.metrics[k]) + " is not in [0, 1]");
 }
 
 }  // namespace detail
@@ -947,7 +949,7 @@ inline Report check_mutator(const MutatorFactory& make, MutatorCase c = {}) {
           mutate(*b, c.loop, it, out_b);
         }))
       return r;
-    detail::check_offspring(r, out_a, c.count, p, ld, names.size(), where);
+    detail::check_offspring(r, out_a, c.count, p, ld, names, where);
     const std::string d = detail::difference(out_a, out_b);
     r.expect(d.empty(), where + "two fresh mutators given the same inputs and Rng seed differ in " + d);
     Feedback fb;

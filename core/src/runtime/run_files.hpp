@@ -1,7 +1,7 @@
-// Writing and reading the run's files: numbers as text, whole files replaced atomically, appended
-// logs, and the checks that keep a hostile run directory from redirecting or blocking either: a run
-// directory's files are regular files of this directory only (never followed through a symlink,
-// never a FIFO or device, never written in place while another directory shares their inode).
+// Writing and reading the run's files: whole files replaced atomically, appended logs, and the
+// checks that keep a hostile run directory from redirecting or blocking either: a run directory's
+// files are regular files of this directory only (never followed through a symlink, never a FIFO
+// or device, never written in place while another directory shares their inode).
 #pragma once
 
 #include <cstdint>
@@ -9,12 +9,6 @@
 #include <string>
 
 namespace qd::runtime {
-
-// Shortest text that reads back to the same double (std::to_chars); NaN is "nan", infinities
-// "inf" and "-inf", as pandas reads them.
-void append_number(std::string& out, double v);
-std::string format_number(double v);
-void append_int(std::string& out, std::int64_t v);
 
 // Writes all of `size` bytes to `fd`; throws qd::Error naming `path` on failure.
 void write_all(int fd, const char* bytes, std::size_t size, const std::filesystem::path& path);

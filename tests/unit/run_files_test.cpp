@@ -1,5 +1,6 @@
-#include "runtime/csv.hpp"
+#include "runtime/run_files.hpp"
 #include "files.hpp"
+#include "runtime/number_text.hpp"
 
 #include <qd/errors.hpp>
 
@@ -30,7 +31,7 @@ using qd::test::slurp;
 
 // A fresh directory holding archive.csv = "old\n"; returns the file's path.
 fs::path directory_with_old_file(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("qd_csv_test-" + std::to_string(::getpid()) + "-" + name);
+  const fs::path d = fs::temp_directory_path() / ("qd_run_files_test-" + std::to_string(::getpid()) + "-" + name);
   fs::remove_all(d);
   fs::create_directories(d);
   std::ofstream(d / "archive.csv") << "old\n";
@@ -109,7 +110,7 @@ TEST(AppendLog, AppendToFileWritesAtOnce) {
 // never shared with another directory, never read without end.
 namespace {
 fs::path fresh_directory(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("qd_csv_test-" + std::to_string(::getpid()) + "-" + name);
+  const fs::path d = fs::temp_directory_path() / ("qd_run_files_test-" + std::to_string(::getpid()) + "-" + name);
   fs::remove_all(d);
   fs::create_directories(d);
   return d;

@@ -1,4 +1,4 @@
-#include "runtime/csv.hpp"
+#include "runtime/run_files.hpp"
 
 #include <qd/errors.hpp>
 
@@ -14,26 +14,6 @@
 
 namespace qd::runtime {
 namespace fs = std::filesystem;
-
-void append_number(std::string& out, double v) {
-  if (std::isnan(v)) {
-    out += "nan";
-    return;
-  }
-  char buf[32];
-  out.append(buf, std::to_chars(buf, buf + sizeof(buf), v).ptr);
-}
-
-std::string format_number(double v) {
-  std::string s;
-  append_number(s, v);
-  return s;
-}
-
-void append_int(std::string& out, std::int64_t v) {
-  char buf[24];
-  out.append(buf, std::to_chars(buf, buf + sizeof(buf), v).ptr);
-}
 
 void write_all(int fd, const char* bytes, std::size_t size, const fs::path& path) {
   while (size > 0) {
