@@ -10,11 +10,14 @@ rm -rf "$out"
 "$qdrun" "$exp" -o "$out/killed" --quiet --workers 1 "$@" &
 pid=$!
 dir=""
-# Kill as soon as a checkpoint exists and the run has written metrics rows beyond it.
+# Kill as soon as a checkpoint exists and the run has written metrics rows beyond it. The run is
+# stopped (SIGSTOP) while each check looks at it and advances only in short slices between checks,
+# so a run of a fraction of a second (lp-cma-me) cannot finish between two checks on a busy machine.
 for _ in $(seq 1 6000); do
+  kill -STOP $pid 2>/dev/null || break
   dir=$(ls -d "$out"/killed/*/seed-* 2>/dev/null | head -n 1 || true)
   if [ -n "$dir" ] && [ -e "$dir/checkpoint.bin" ] && [ "$(wc -l < "$dir/metrics.csv")" -gt 3 ]; then break; fi
-  kill -0 $pid 2>/dev/null || break
+  kill -CONT $pid 2>/dev/null || break
   sleep 0.01
 done
 kill -9 $pid 2>/dev/null || true
