@@ -3,9 +3,9 @@
 
 #include "plugin_hints.hpp"
 #include "runtime/number_text.hpp"
-#include "runtime/run_files.hpp"
 #include "runtime/replay.hpp"
 #include "runtime/run.hpp"
+#include "runtime/run_files.hpp"
 
 #include <qd/errors.hpp>
 

@@ -4,8 +4,8 @@
 
 #include "run_guard.hpp"
 #include "runtime/clock.hpp"
-#include "runtime/run_files.hpp"
 #include "runtime/evaluator.hpp"
+#include "runtime/run_files.hpp"
 
 #include <qd/errors.hpp>
 
@@ -16,7 +16,6 @@
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
-#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>

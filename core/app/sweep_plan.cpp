@@ -5,8 +5,8 @@
 #include "runtime/checkpoint.hpp"
 #include "runtime/components.hpp"
 #include "runtime/number_text.hpp"
-#include "runtime/run_files.hpp"
 #include "runtime/run_directory.hpp"
+#include "runtime/run_files.hpp"
 
 #include <qd/errors.hpp>
 

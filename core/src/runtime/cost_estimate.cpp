@@ -1,5 +1,6 @@
 #include "runtime/cost_estimate.hpp"
 
+#include "runtime/clock.hpp"
 #include "runtime/evaluator.hpp"
 #include "runtime/grid_archive.hpp"
 #include "runtime/map_elites.hpp"
@@ -11,7 +12,6 @@
 #include <qd/rng.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <map>
 #include <numeric>
@@ -39,9 +39,9 @@ class TimedEvaluator final : public Evaluator {
   const char* backend() const noexcept override { return inner_->backend(); }
   void evaluate(const Matrix& params, const std::vector<std::uint64_t>& seeds, std::uint64_t first_episode,
                 Evaluations& out) override {
-    const auto start = std::chrono::steady_clock::now();
+    const double start = now_seconds();
     inner_->evaluate(params, seeds, first_episode, out);
-    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    seconds += now_seconds() - start;
     episodes += out.steps.size();
     steps += std::accumulate(out.steps.begin(), out.steps.end(), 0.0);
   }
