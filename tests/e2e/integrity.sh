@@ -3,7 +3,7 @@
 # silently loses or changes results.
 #   integrity.sh QDRUN EXPERIMENT OUT CASE
 # CASE: concurrent_resume | edited_config | copied_without_state | flipped_bits | truncated_metrics |
-#       sigterm | full_disk | thread_limit
+#       sigterm | full_disk | log_symlink | thread_limit
 source "$(dirname "$0")/lib.sh"
 qdrun=$1 exp=$2 out=$3 case=$4
 rm -rf "$out"
@@ -126,12 +126,23 @@ sigterm)
   grep -qx complete "$dir/status"
   ;;
 full_disk)
-  # A log that cannot be written fails the run (system error, exit 4), never a silent gap.
-  mkdir -p "$out/a/smoke-poms/seed-7"
-  ln -s /dev/full "$out/a/smoke-poms/seed-7/losses.csv"
-  err=$("$qdrun" "$exp" -o "$out/a" -q --workers 1 2>&1 >/dev/null) && got=0 || got=$?
+  # A file that cannot be written fails the run (system error, exit 4), never a silent gap. The disk
+  # is full for qdrun alone: no file of its may grow past 64 KiB (RLIMIT_FSIZE; with SIGXFSZ ignored
+  # the write fails with EFBIG, as it fails with ENOSPC on a full disk).
+  err=$( (trap '' XFSZ; ulimit -f 64; exec "$qdrun" "$exp" -o "$out/a" -q --workers 1) 2>&1 >/dev/null) && got=0 || got=$?
   [ "$got" -eq 4 ] || { echo "exit $got, expected 4: $err"; exit 1; }
-  grep -q "losses.csv" <<< "$err" || { echo "the message does not name the file: $err"; exit 1; }
+  grep -Eq "$out/a/smoke-poms/seed-7/[a-z0-9._-]+: File too large" <<< "$err" ||
+    { echo "the message does not name the run's file and the error: $err"; exit 1; }
+  grep -q "^failed: " "$out/a/smoke-poms/seed-7/status" || { echo "status: $(cat "$out/a/smoke-poms/seed-7/status")"; exit 1; }
+  ;;
+log_symlink)
+  # A representation's training log is a run file like the others: a symlink in its place is refused
+  # (exit 2, naming it) and the file it points to is never written.
+  mkdir -p "$out/a/smoke-poms/seed-7"
+  echo "someone else's file" > "$out/elsewhere.csv"
+  ln -s "$out/elsewhere.csv" "$out/a/smoke-poms/seed-7/losses.csv"
+  refused "losses.csv is a symbolic link" "$qdrun" "$exp" -o "$out/a" -q --workers 1
+  [ "$(cat "$out/elsewhere.csv")" = "someone else's file" ] || { echo "written through the symlink"; exit 1; }
   grep -q "^failed: " "$out/a/smoke-poms/seed-7/status" || { echo "status: $(cat "$out/a/smoke-poms/seed-7/status")"; exit 1; }
   ;;
 thread_limit)

@@ -1,6 +1,8 @@
 // The representation's training logs (qd::TrainingLog): the core owns the files. A log name is a
 // plain .csv file name that is none of the run's own; the header is written once; a file no
-// checkpoint vouches for starts again; a failed write is a system error naming the log.
+// checkpoint vouches for starts again; a failed write is a system error naming the log; a symlink in
+// its place is refused and a log shared with another directory is made private first.
+#include "files.hpp"
 #include "runtime/run_directory.hpp"
 
 #include <qd/errors.hpp>
@@ -58,13 +60,40 @@ TEST(TrainingLog, HeaderOnceRowsAppendedAndAnUnvouchedFileStartsAgain) {
 // A log that cannot be written fails the run (a system error naming the file), never a silent gap.
 TEST(TrainingLog, AFailedWriteIsASystemErrorNamingTheLog) {
   const fs::path d = fresh_dir("full");
-  fs::create_symlink("/dev/full", d / "losses.csv");
   RunDirectory dir(d);
+  dir.append_log("losses.csv", "loop,epoch\n", "0,0\n", false);
   try {
-    dir.append_log("losses.csv", "loop,epoch\n", "0,0\n", false);
+    const qd::test::FileSizeLimit full_disk(fs::file_size(d / "losses.csv") + 2);
+    dir.append_log("losses.csv", "loop,epoch\n", "0,1\n0,2\n", false);
     FAIL() << "no error";
   } catch (const qd::SystemError& e) {
     EXPECT_NE(std::string(e.what()).find("losses.csv"), std::string::npos) << e.what();
   }
+  fs::remove_all(d);
+}
+
+// Like every file the run changes: never written through a symlink (refused, naming it, the target
+// untouched), and a log shared with another directory (cp -al) gets its own copy before it grows.
+TEST(TrainingLog, NeverWritesThroughASymlinkOrIntoASharedFile) {
+  const fs::path d = fresh_dir("links");
+  std::ofstream(d / "elsewhere.csv") << "someone else's file\n";
+  fs::create_directories(d / "run");
+  fs::create_symlink(d / "elsewhere.csv", d / "run" / "losses.csv");
+  RunDirectory dir(d / "run");
+  try {
+    dir.append_log("losses.csv", "loop,epoch\n", "0,0\n", false);
+    FAIL() << "no error";
+  } catch (const qd::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("losses.csv is a symbolic link"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(read(d / "elsewhere.csv"), "someone else's file\n");
+
+  fs::remove(d / "run" / "losses.csv");
+  dir.append_log("losses.csv", "loop,epoch\n", "0,0\n", false);
+  fs::create_directories(d / "copy");
+  fs::create_hard_link(d / "run" / "losses.csv", d / "copy" / "losses.csv");
+  dir.append_log("losses.csv", "loop,epoch\n", "0,1\n", false);
+  EXPECT_EQ(read(d / "copy" / "losses.csv"), "loop,epoch\n0,0\n");
+  EXPECT_EQ(read(d / "run" / "losses.csv"), "loop,epoch\n0,0\n0,1\n");
   fs::remove_all(d);
 }

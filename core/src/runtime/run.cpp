@@ -263,7 +263,14 @@ bool Run::run() {
   const ExperimentSettings& s = ex_.settings;
   while (next_loop_ < s.loops) {
     const int loop = next_loop_++;
-    loop_.run_loop(loop);
+    try {
+      loop_.run_loop(loop);
+    } catch (const PluginError&) {
+      // A representation that let the training log's own error through is not at fault: the
+      // log's error (a full disk, a symlink in the log's place) is what the user must see.
+      if (log_failure_) std::rethrow_exception(log_failure_);
+      throw;
+    }
     if (s.snapshot_every > 0 && loop % s.snapshot_every == 0) {
       // The snapshots' directory is the run's own, never a symlink out of it.
       const fs::path snapshots = dir_.path() / "archive";

@@ -378,10 +378,10 @@ void RunDirectory::append_log(const std::string& name, const std::string& header
   const fs::path path = dir_ / name;
   std::error_code ec;
   if (restart) fs::remove(path, ec);
-  // Opened as the representations opened their logs before the core owned them (a symlink is
-  // followed; log_sizes() makes the file private at the next checkpoint), one write per call.
-  const int fd = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CREAT | O_CLOEXEC, 0644);
-  if (fd < 0) throw SystemError("cannot write " + path.string() + ": " + std::strerror(errno));
+  // Opened as every file the run changes in place: a symlink, FIFO, device or directory there is
+  // refused, and a file shared with another directory (cp -al) gets its own copy first. One write
+  // per call.
+  const int fd = open_for_update(path, O_APPEND, true);
   struct stat st;
   const bool fresh = ::fstat(fd, &st) != 0 || st.st_size == 0;
   const std::string text = fresh ? header + rows : rows;
