@@ -177,14 +177,28 @@ def draw(out, kinds=None, qdrun=None, compact=False):
                       qdrun=qdrun, compact=compact)
 
 
+def against_budget(s, selection):
+    """A run that is complete at its own budget but short of the report's (a run being extended, say
+    from 302 000 to 1 000 200 evaluations) is not complete for this report: its status says so."""
+    if s["status"] != "complete" or not s["run"].metrics:
+        return s
+    loops_reached = int(s["run"].metrics[-1]["loop"]) + 1
+    loops, evaluations = selection.get("loops"), selection.get("evaluations")
+    if loops and loops_reached < loops:
+        s["status"] = f"complete at {loops_reached} loops, short of this report's {loops}"
+    elif evaluations and s["evaluations"] < evaluations:
+        s["status"] = f"complete at {s['evaluations']} evaluations, short of this report's {evaluations}"
+    return s
+
+
 def render(out, selection, header, addenda):
     """REPORT.md's text for the report directory `out`: its runs, figures/qdplot.json and these."""
     runs_root = out / "runs"
     envs, algs = selection["environments"], selection["algorithms"]
     # Every run of the chosen environments and algorithms: the epoch caps are read from the runs themselves.
     prefix = selection.get("prefix", "")  # the reference set's runs are named reference-<env>-<alg>
-    found = {(e, a): [summary.summarise(runs_mod.Run(d)) for d in sorted((runs_root / f"{prefix}{e}-{a}").glob("seed-*"),
-                                                                          key=lambda d: d.name)
+    found = {(e, a): [against_budget(summary.summarise(runs_mod.Run(d)), selection)
+                      for d in sorted((runs_root / f"{prefix}{e}-{a}").glob("seed-*"), key=lambda d: d.name)
                       if runs_mod.is_run_dir(d)] for e in envs for a in algs}
     report = sections.Report(out=out, envs=envs, algs=algs, runs=found, figures=read_manifest(out / "figures"),
                              header=header, selection=selection, addenda=addenda)

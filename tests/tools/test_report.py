@@ -60,6 +60,22 @@ class Regenerate(unittest.TestCase):
         self.assertIn("\nQD metrics: no task fitness (the environment declares none", body)
         self.assertFalse((out / "figures" / "qd-striker.png").exists())
 
+    def test_a_run_short_of_the_reports_budget_is_not_complete(self):
+        # A run complete at its own budget (20 evaluations) in a report of 40, as a run being extended.
+        out = fixtures.tmpdir(self) / "study"
+        make_study(out, {("poms", 1): 30, ("poms", 2): 10, ("iso", 1): 40})
+        fixtures.write_run(out / "runs", name="striker-poms", seed=3, env="striker", rep="autoencoder",
+                           mutator="poms", descriptor="striker-contacts", metrics=[(0, 20, 90, 0.5)])
+        text = regenerate(out)
+        self.assertIn("| PoMS | 2/3 | 40 | 10 (10-30) |", text)
+        self.assertRegex(text, r"\| PoMS \| 3 \| 3 \| 20 \| 90 \| .* \| complete at 20 evaluations, short of this "
+                               r"report's 40 \|")
+        record = study.read(out)
+        record["selection"].update(evaluations=None, loops=2)
+        study.write(out, record)
+        self.assertRegex(regenerate(out), r"\| PoMS \| 3 \| 3 \| 20 \| 90 \| .* \| complete at 1 loops, short of this "
+                                          r"report's 2 \|")
+
     def test_qd_metrics_of_a_task_with_fitness(self):
         out = fixtures.tmpdir(self) / "study"
         # (seed, final QD score) of MAP-Elites (iso) and CMA-ME, an experiment file the table does not know.
