@@ -50,6 +50,22 @@ class Figures(unittest.TestCase):
         self.assertEqual((fitness["vmin"], fitness["vmax"]), (1.0, 3.0))
         self.assertEqual(fitness["figure"]["colorbars"], ["fitness (archive.csv objective)"])
 
+    def test_seeds_of_unequal_length_are_dotted_where_fewer_seeds_reach(self):
+        # Seeds 1 and 2 to 40 evaluations, seed 3 on to 60 (a study still running): the legend gives
+        # the median where all three have run (nearest rule: of 8, 9, 10 cells, 9), the curve goes on
+        # dotted over one seed.
+        root = fixtures.tmpdir(self)
+        for seed, rows in ((1, [(0, 20, 5), (1, 40, 8)]), (2, [(0, 20, 6), (1, 40, 9)]),
+                           (3, [(0, 20, 4), (1, 40, 10), (2, 60, 30)])):
+            fixtures.write_run(root / "runs", seed=seed, grid=GRID, metrics=rows, experiment_file="/x/decaying-iso.toml")
+        with contextlib.redirect_stdout(io.StringIO()):
+            plot_cli.plot([root / "runs"], root / "figures", ["coverage"], formats=("png",), dump=True)
+        data = dump(root / "figures", "coverage-point-mass")
+        self.assertIn("decaying-iso (3 seeds; 1 past 40, dotted): 9 cells, 75.00 %", data["figure"]["legends"])
+        entry = data["algorithms"]["decaying-iso"]
+        self.assertEqual(entry["runs_reaching"], [3, 3, 1])
+        self.assertIn("dotted: fewer seeds", data["figure"]["axes"][0]["title"])
+
     def test_dimension_zero_to_the_right_in_square_cells(self):
         figures, _ = plot(self, [(7, 1.0, 1.2, 0.7)], kinds="maps")
         m = dump(figures, "map-point-mass-decaying-iso")

@@ -33,28 +33,40 @@ def plot(out, env, groups):
         everyone += runs
         cells, index_space, index_label = runs[0].cells, runs[0].index_space, runs[0].index_space_label
         colour, marker, linestyle = styles[alg]
-        final = int(stats.nearest([r.final_elites() for r in runs], 50))
-        label = f"{alg} ({len(runs)} seed{'s' if len(runs) > 1 else ''}): {final} cells, {100 * final / cells:.2f} %"
+        x, ys = stats.coverage_series(runs)
+        med, q25, q75 = (stats.nearest_percentile(ys, q) for q in (50, 25, 75))
+        # Runs of unequal length (a study still running): the curve is solid where every seed has
+        # run and dotted beyond, where the median is over fewer seeds; the legend gives the median
+        # where all seeds have run.
+        reaching = np.sum(~np.isnan(ys), axis=0)
+        full = int(np.flatnonzero(reaching == len(runs))[-1])
+        if full == len(x) - 1:
+            final = int(stats.nearest([r.final_elites() for r in runs], 50))
+            seeds = f"{len(runs)} seed{'s' if len(runs) > 1 else ''}"
+        else:
+            final = int(round(med[full] * runs[0].cells / 100))
+            seeds = f"{len(runs)} seeds; {int(reaching[-1])} past {evaluations_tick(x[full])}, dotted"
+        label = f"{alg} ({seeds}): {final} cells, {100 * final / cells:.2f} %"
         if index_space:
             label += f" ({100 * final / index_space:.2f} % of {index_space})"
         caps = sorted({r.epoch_cap for r in runs if r.epoch_cap is not None})
         if caps:
             label += ", autoencoder capped at " + "/".join(map(str, caps)) + " epochs"
-        x, ys = stats.coverage_series(runs)
-        med, q25, q75 = (stats.nearest_percentile(ys, q) for q in (50, 25, 75))
-        ax.fill_between(x, q25, q75, color=colour, alpha=0.2, linewidth=0)
+        ax.fill_between(x[:full + 1], q25[:full + 1], q75[:full + 1], color=colour, alpha=0.2, linewidth=0)
         ends = stats.loop_ends(max(runs, key=lambda r: len(r.metrics)))
-        marks = [int(np.searchsorted(x, e)) for e in ends if e <= x[-1]]
+        marks = [int(np.searchsorted(x, e)) for e in ends if e <= x[full]]
         if len(marks) > MAX_MARKERS:
             marks = marks[::math.ceil(len(marks) / MAX_MARKERS)]
-        (line,) = ax.plot(x, med, color=colour, marker=marker, markevery=marks, markersize=4, linewidth=1.3,
-                          linestyle=linestyle)
+        (line,) = ax.plot(x[:full + 1], med[:full + 1], color=colour, marker=marker, markevery=marks, markersize=4,
+                          linewidth=1.3, linestyle=linestyle)
+        if full < len(x) - 1:
+            ax.plot(x[full:], med[full:], color=colour, linewidth=1.0, linestyle=":")
         handles.append(line)
         labels.append(label)
         entry = {"seeds": [r.seed for r in runs], "runs": [str(r.path) for r in runs], "cells": cells,
                  "index_space": index_space, "final_median_elites": final, "epoch_caps": caps,
                  "evaluations": x.tolist(), "median": med.tolist(), "q25": q25.tolist(), "q75": q75.tolist(),
-                 "loop_end_evaluations": ends}
+                 "runs_reaching": reaching.tolist(), "loop_end_evaluations": ends}
         if axr is not None and algs.plots_mixing_ratio(alg):
             ratio = mixing_ratio(runs)
             if ratio is not None:
@@ -71,6 +83,9 @@ def plot(out, env, groups):
     ax.set_ylabel(f"coverage (% of {cells} cells)")
     ax.set_title(with_cap(f"{env}: coverage, median over seeds, a marker per loop; final median in the legend",
                           everyone), fontsize=10)
+    if any(", dotted)" in label for label in labels):
+        ax.set_title(with_cap(f"{env}: coverage, median over seeds (dotted: fewer seeds), a marker per loop;\n"
+                              "in the legend the median where every seed has run", everyone), fontsize=9)
     ax.grid(alpha=0.3)
     ax.set_ylim(bottom=0)
     if index_space:  # the same curves in % of the reference's index space (the Walker's 50 000)
@@ -87,8 +102,9 @@ def plot(out, env, groups):
         bottom = axr
     bottom.set_xlabel("evaluations")
     bottom.xaxis.set_major_formatter(FuncFormatter(evaluations_tick))
-    rows = math.ceil(len(labels) / 2)
-    legend_below(fig, handles, labels, ncol=2)
+    ncol = 1 if any(", dotted)" in label for label in labels) else 2  # those labels are too long for two
+    rows = math.ceil(len(labels) / ncol)
+    legend_below(fig, handles, labels, ncol=ncol)
     fig.subplots_adjust(left=0.1, right=0.9 if index_space else 0.97, top=0.91, bottom=0.1 + 0.028 * rows,
                         hspace=0.25)
     out.save(fig, stem("coverage", env), "coverage", data, everyone, environment=env)
