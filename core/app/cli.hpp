@@ -20,7 +20,7 @@ struct Cli {
   bool seed_given = false;  // else the experiment's
   int workers = 0;
   int stop_after_loop = -1;
-  bool quiet = false, list = false, version = false;
+  bool quiet = false, list = false, version = false, help = false;
   // Sweeps (several files and/or --seeds), replay of all elites, latent codes.
   std::string seeds, traces, latents;
   std::string planned_config;  // from a sweep: the checksum of the configuration it planned

@@ -225,7 +225,7 @@ int qdrun_main(int argc, char** argv) {
   po::options_description visible("qdrun EXPERIMENT.toml [options]\n\nOptions");
   // clang-format off
   visible.add_options()
-    ("help,h", "show this help")
+    ("help,h", po::bool_switch(&cli.help), "show this help")
     ("version", po::bool_switch(&cli.version), "print the version and build fingerprint")
     ("seed", po::value(&cli.seed), "override experiment.seed")
     ("set", po::value(&cli.sets)->composing(), "override a setting: --set mutator.sigma=0.05 (repeatable)")
@@ -273,10 +273,10 @@ int qdrun_main(int argc, char** argv) {
     cli.cell_given = vm.count("cell") > 0;
     check_options(cli, vm);
     // Under mpirun only rank 0 answers questions (help, list, describe, replay); the others wait.
-    const bool runs = !vm.count("help") && !cli.version && !cli.list && cli.describe.empty() && cli.replay.empty() &&
-                      cli.latents.empty();
+    const bool runs =
+        !cli.help && !cli.version && !cli.list && cli.describe.empty() && cli.replay.empty() && cli.latents.empty();
     if (mpi_rank() > 0 && !runs) return kExitOk;
-    if (vm.count("help")) {
+    if (cli.help) {
       std::cout << visible << "\nPlugins are searched in --plugin-path, QD_PLUGIN_PATH, [plugins] path (and, for\n"
                 << "a run directory, the directories its config.toml recorded), then <prefix>/lib/qd/plugins.\n"
                 << "See docs/user-guide.md.\n";
