@@ -76,6 +76,24 @@ class Regenerate(unittest.TestCase):
         self.assertRegex(regenerate(out), r"\| PoMS \| 3 \| 3 \| 20 \| 90 \| .* \| complete at 1 loops, short of this "
                                           r"report's 2 \|")
 
+    def test_the_cost_of_a_run_with_two_workers_is_its_episodes_halved_plus_its_training(self):
+        out = fixtures.tmpdir(self) / "study"
+        make_study(out, {("poms", 1): 30, ("poms", 2): 10, ("iso", 1): 40})
+        prov = out / "runs" / "striker-poms" / "seed-2" / "provenance.toml"
+        prov.write_text(prov.read_text().replace("workers = 1", "workers = 2"))
+        (out / "estimate.txt").write_text(
+            "# header\nestimate (...):\n"
+            "  striker-poms/seed-1   0.30 core-h: 40 evaluations 0.20 h, training 0.10 h (loop 0: ...)\n"
+            "  striker-poms/seed-2   0.30 core-h: 40 evaluations 0.20 h, training 0.10 h (loop 0: ...)\n"
+            "  striker-iso/seed-1    0.25 core-h: 40 evaluations 0.25 h, training 0.000 h (loop 0: ...)\n"
+            "sweep: estimated 0.85 core-hours (episodes 0.65); on this machine, 1 at a time on 2 cores: about 0.43 hours\n")
+        text = regenerate(out)
+        # Seed 1 (one worker): 0.30 h; seed 2 (two workers): 0.20 / 2 + 0.10 = 0.20 h; the median of the two is
+        # 0.20 (nearest rank rounds to even). Each run's wall time is 0.2 s (two metrics rows).
+        self.assertIn("| striker | PoMS | 2 | 0.300 | 0.200 | 0.000 | 0.00 |", text)
+        self.assertIn("| striker | MAPE-Iso | 1 | 0.250 | 0.250 | 0.000 | 0.00 |", text)
+        self.assertIn("All 3 compared runs: estimate 0.85 core-h, 0.75 h of run wall time with their workers;", text)
+
     def test_qd_metrics_of_a_task_with_fitness(self):
         out = fixtures.tmpdir(self) / "study"
         # (seed, final QD score) of MAP-Elites (iso) and CMA-ME, an experiment file the table does not know.
@@ -116,9 +134,11 @@ class Parts(unittest.TestCase):
         out = fixtures.tmpdir(self)
         (out / "estimate.txt").write_text(
             "# header\nestimate (...):\n  striker-iso/seed-1   0.25 core-h: 22000 evaluations ...\n"
+            "  striker-poms/seed-1   0.30 core-h: 22000 evaluations 0.20 h, training 0.10 h (loop 0: ...)\n"
             "sweep: estimated 0.50 core-hours (episodes 0.5); on this machine, 2 at a time on 2 cores: about 0.25 hours\n")
         per_run, total = sweep.read_estimate(out / "estimate.txt")
-        self.assertEqual(per_run, {"striker-iso/seed-1": 0.25})
+        self.assertEqual(per_run, {"striker-iso/seed-1": {"core_h": 0.25, "episodes_h": 0.25},
+                                   "striker-poms/seed-1": {"core_h": 0.30, "episodes_h": 0.20}})
         self.assertEqual(total, {"core_h": 0.5, "jobs": 2, "cores": 2, "wall_h": 0.25})
         sweep.log_invocation(out / "invocations.csv", "T1", "", "running", "")
         sweep.log_invocation(out / "invocations.csv", "T1", "12.5", "0", "3 runs: 3 finished, 0 failed")

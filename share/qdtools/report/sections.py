@@ -286,28 +286,33 @@ def cost(r):
              "Before the sweep's first run, qdreport saved its plan and estimated cost (`qdrun --dry-run` of the "
              "qdrun that ran the sweep, by the model of docs/performance.md at that revision) in "
              "REPORT_DIR/estimate.txt; every invocation of the sweep is logged in "
-             "REPORT_DIR/invocations.csv. A run's measured time is its own wall time (one worker, so about one core "
-             "while the sweep runs one run per core); the estimate is in core-hours.", "",
-             "| environment | algorithm | runs compared | estimate, core-h per run (median) | measured, wall h per run "
-             "(median) | measured / estimate |", "|---|---|---|---|---|---|"]
-    est_sum = wall_sum = 0.0
+             "REPORT_DIR/invocations.csv. The estimate is in core-hours; a run's measured time is its own wall "
+             "time, so a run with w workers is compared with its estimated wall time, the episodes' core-hours / w "
+             "plus the training (for one worker, the core-hours).", "",
+             "| environment | algorithm | runs compared | estimate, core-h per run (median) | estimate, wall h per run "
+             "(median) | measured, wall h per run (median) | measured / estimate |", "|---|---|---|---|---|---|---|"]
+    est_sum = core_sum = wall_sum = 0.0
     compared = 0
     for env in r.envs:
         for a in r.algs:
             key = r.run_name(env, a) + "/seed-"
-            pairs = [(per_run[f"{key}{s['seed']}"], s["wall"] / 3600) for s in r.runs[(env, a)]
-                     if s["status"] == "complete" and f"{key}{s['seed']}" in per_run and s["wall"] > 0]
-            if not pairs:
+            rows = [(per_run[f"{key}{s['seed']}"], _workers(s), s["wall"] / 3600) for s in r.runs[(env, a)]
+                    if s["status"] == "complete" and f"{key}{s['seed']}" in per_run and s["wall"] > 0]
+            if not rows:
                 continue
-            compared += len(pairs)
-            est_sum += sum(e for e, _ in pairs)
-            wall_sum += sum(w for _, w in pairs)
-            e, w = stats.nearest([e for e, _ in pairs], 50), stats.nearest([w for _, w in pairs], 50)
-            lines.append(f"| {env} | {r.name(a)} | {len(pairs)} | {e:.3f} | {w:.3f} | {ratio(w, e)} |")
+            compared += len(rows)
+            core = [e["core_h"] for e, _, _ in rows]
+            expected = [e["core_h"] - e["episodes_h"] + e["episodes_h"] / w for e, w, _ in rows]
+            walls = [m for _, _, m in rows]
+            core_sum += sum(core)
+            est_sum += sum(expected)
+            wall_sum += sum(walls)
+            c, e, w = (stats.nearest(v, 50) for v in (core, expected, walls))
+            lines.append(f"| {env} | {r.name(a)} | {len(rows)} | {c:.3f} | {e:.3f} | {w:.3f} | {ratio(w, e)} |")
     lines.append("")
     if compared:
-        lines.append(f"All {compared} compared runs: estimate {est_sum:.2f} core-h, measured {wall_sum:.2f} h of run "
-                     f"wall time (ratio {ratio(wall_sum, est_sum)}).")
+        lines.append(f"All {compared} compared runs: estimate {core_sum:.2f} core-h, {est_sum:.2f} h of run wall time "
+                     f"with their workers; measured {wall_sum:.2f} h of run wall time (ratio {ratio(wall_sum, est_sum)}).")
     if total:
         text = (f"The whole sweep: estimate {total['core_h']:.2f} core-hours, about {total['wall_h']:.2f} h of wall "
                 f"time with {total['jobs']} at a time on {total['cores']} cores")
@@ -328,6 +333,14 @@ def cost(r):
             text += f" (ratio to the estimate {ratio(secs / 3600, total['wall_h'])})"
         lines.append(text + ": this includes runs interrupted and resumed, and anything else the machine did.")
     return lines
+
+
+def _workers(s):
+    """A run's worker count from its provenance (1 when it does not say)."""
+    try:
+        return max(1, int(s["workers"]))
+    except (TypeError, ValueError):
+        return 1
 
 
 def lengthening(r):

@@ -50,12 +50,15 @@ def save_estimate(out, sweep, shown):
 
 
 def read_estimate(path):
-    """The per-run core-hours and the sweep's totals of a saved `qdrun --dry-run` (estimate.txt)."""
+    """The per-run estimates and the sweep's totals of a saved `qdrun --dry-run` (estimate.txt): per
+    run its core-hours and the part of them that is episodes (the rest is training, which a run's
+    worker count does not divide); an older line without the parts counts as episodes only."""
     per_run, total = {}, None
     for line in Path(path).read_text().splitlines():
-        m = re.match(r"^  (\S+/seed-\d+) +([0-9.]+) core-h:", line)
+        m = re.match(r"^  (\S+/seed-\d+) +([0-9.]+) core-h:(?: \d+ evaluations ([0-9.]+) h, training ([0-9.]+) h)?", line)
         if m:
-            per_run[m[1]] = float(m[2])
+            core_h = float(m[2])
+            per_run[m[1]] = {"core_h": core_h, "episodes_h": float(m[3]) if m[3] else core_h}
         m = re.match(r"^sweep: estimated ([0-9.]+) core-hours .*?(\d+) at a time on (\d+) cores?: about ([0-9.]+) hours",
                      line)
         if m:
