@@ -55,7 +55,7 @@ grep -Eq "^  striker-poms/seed-2 +[0-9.]+ core-h: " "$out/estimate.txt"
   || { cat "$out/invocations.csv"; exit 1; }
 grep -q "^## Cost: the estimate against the measured time" "$report"
 for name in PoMS MAPE-Iso ps-uniform; do
-  grep -Eq "^\| striker \| $name \| 3 \| [0-9.]+ \| [0-9.]+ \| ([0-9.]+|n/a) \|$" "$report" \
+  grep -Eq "^\| striker \| $name \| 3 \| [0-9.]+ \| [0-9.]+ \| [0-9.]+ \| ([0-9.]+|n/a) \|$" "$report" \
     || { echo "no cost row for $name"; sed -n '/## Cost/,$p' "$report"; exit 1; }
 done
 grep -q "^All 9 compared runs: estimate" "$report"
