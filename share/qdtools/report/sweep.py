@@ -55,7 +55,7 @@ def read_estimate(path):
     worker count does not divide); an older line without the parts counts as episodes only."""
     per_run, total = {}, None
     for line in Path(path).read_text().splitlines():
-        m = re.match(r"^  (\S+/seed-\d+) +([0-9.]+) core-h:(?: \d+ evaluations ([0-9.]+) h, training ([0-9.]+) h)?", line)
+        m = re.match(r"^  (\S+/seed-\d+) +([0-9.]+) core-h:(?: \d+ evaluations ([0-9.]+) h, training [0-9.]+ h)?", line)
         if m:
             core_h = float(m[2])
             per_run[m[1]] = {"core_h": core_h, "episodes_h": float(m[3]) if m[3] else core_h}
