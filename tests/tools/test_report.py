@@ -60,6 +60,29 @@ class Regenerate(unittest.TestCase):
         self.assertIn("\nQD metrics: no task fitness (the environment declares none", body)
         self.assertFalse((out / "figures" / "qd-striker.png").exists())
 
+    def test_which_algorithm_leads_ours_beside_the_papers(self):
+        out = fixtures.tmpdir(self) / "study"
+        # Elites (of 100 cells, so %) at 20 000 and 50 000 evaluations. Ours at 20 000: PoMS's median of
+        # (10, 12, 14) is 12, MAPE-Iso's of (8, 9) is 8 (rank 0.5 rounds to even): PoMS leads by 12/8 - 1.
+        # At 50 000: 16 against 20, MAPE-Iso leads by 25 %. The paper's Striker curves (share/paper-curves.csv)
+        # have MAPE-Iso ahead at both: 6.108 against 5.510 (10.9 %), 7.807 against 7.288 (7.1 %).
+        for alg, seeds in {"poms": ((10, 15), (12, 16), (14, 17)), "iso": ((8, 20), (9, 30))}.items():
+            rep, mut = ALG_PAIRS[alg]
+            for seed, (at20, at50) in enumerate(seeds, 1):
+                fixtures.write_run(out / "runs", name=f"striker-{alg}", seed=seed, env="striker", rep=rep,
+                                   mutator=mut, descriptor="striker-contacts",
+                                   metrics=[(0, 20000, at20, ""), (1, 50000, at50, "")])
+        study.write(out, {"selection": {"environments": ["striker"], "algorithms": ["poms", "iso"], "seeds": "1,2,3",
+                                        "evaluations": 50000},
+                          "header": {"date": "2026-01-01 00:00 UTC", "qdrun": "qdrun 9 (git x)", "machine": "M",
+                                     "hardware_threads": 2, "command": "share/qdreport -o REPORT_DIR"}})
+        text = regenerate(out)
+        self.assertIn("| PoMS | 12.00 / 5.51 = 2.18 (3) | 16.00 / 7.29 = 2.20 (3) |", text)
+        self.assertIn("| 20 000 | PoMS 12.00 (3) | MAPE-Iso 8.00 (2) | 50.0 % | MAPE-Iso 6.11 | PoMS 5.51 | 10.9 % | no |",
+                      text)
+        self.assertIn("| 50 000 | MAPE-Iso 20.00 (2) | PoMS 16.00 (3) | 25.0 % | MAPE-Iso 7.81 | PoMS 7.29 | 7.1 % | yes |",
+                      text)
+
     def test_a_run_short_of_the_reports_budget_is_not_complete(self):
         # A run complete at its own budget (20 evaluations) in a report of 40, as a run being extended.
         out = fixtures.tmpdir(self) / "study"

@@ -406,7 +406,7 @@ def paper(r):
         figure = next((envs.paper_figures[v] for v in sorted(variants) if v in envs.paper_figures), None)
         if not figure or len(variants) != 1:
             continue
-        rows, used = [], set()
+        rows, used, both = [], set(), {}
         for a in r.algs:
             cells = []
             for e in PAPER_AT:
@@ -421,6 +421,7 @@ def paper(r):
                     used.add(e)
                     med = stats.nearest(ours, 50)
                     cells.append(f"{med:.2f} / {theirs:.2f} = {med / theirs:.2f} ({len(ours)})")
+                    both.setdefault(e, []).append((r.name(a), med, len(ours), theirs))
                 else:
                     cells.append("")
             rows.append((r.name(a), cells))
@@ -445,6 +446,32 @@ def paper(r):
                   "|---|" + "---|" * len(used)]
         lines += [f"| {name} | " + " | ".join(c for c, e in zip(cells, PAPER_AT) if e in used) + " |"
                   for name, cells in rows]
+        lines += leaders(both)
+    return lines
+
+
+def leaders(both):
+    """Which algorithm leads at each budget, ours (the medians) beside the paper's, among the
+    algorithms with both at that budget: the claim a coverage figure makes. `both`: {evaluations:
+    [(name, our median, seeds, paper's value)]}."""
+    budgets = [e for e in PAPER_AT if len(both.get(e, [])) >= 2]
+    if not budgets:
+        return []
+
+    def ranked(e, k):
+        first, second = sorted(both[e], key=lambda row: -row[k])[:2]
+        return first, second, f"{100 * (first[k] / second[k] - 1):.1f} %" if second[k] > 0 else "-"
+
+    lines = ["", "Which algorithm leads, ours and the paper's, among the algorithms above with both at that "
+             "budget; the lead is the leader's coverage over the runner-up's (ours: medians, seeds in brackets).",
+             "", "| at | ours: leader | runner-up | lead | the paper's: leader | runner-up | lead | same leader |",
+             "|---|---|---|---|---|---|---|---|"]
+    for e in budgets:
+        (a, am, an, _), (b, bm, bn, _), lead = ranked(e, 1)
+        (pa, _, _, pam), (pb, _, _, pbm), plead = ranked(e, 3)
+        at = f"{e:,}".replace(",", " ")
+        lines.append(f"| {at} | {a} {am:.2f} ({an}) | {b} {bm:.2f} ({bn}) | {lead} | {pa} {pam:.2f} | "
+                     f"{pb} {pbm:.2f} | {plead} | {'yes' if a == pa else 'no'} |")
     return lines
 
 
