@@ -11,14 +11,14 @@ sys.dont_write_bytecode = True  # nothing written into the source tree
 
 def write_run(root, name="my-env-decaying", seed=1, env="point-mass", rep="none", mutator="decaying-iso",
               descriptor="point-xy", metrics=None, grid=None, archive=None, experiment_file=None, extra_env="",
-              batch=10, status="complete", centroids=None, qd=None):
+              batch=10, status="complete", centroids=None, qd=None, wall=None):
     """A run directory <root>/<name>/seed-<seed>/ with config.toml, provenance.toml, metrics.csv (the
     columns qdrun writes; the QD metrics empty unless `qd` is given) and, when given, grid.toml and
     archive.csv. `metrics`: rows (loop, evaluations, elites[, mixing_ratio]); `grid`: (shape, names,
     lower, upper[, labels]); `centroids`: (names, rows of coordinates[, lower, upper]), a CVT's
     grid.toml (bounds: the given, else the centroids' own) and centroids.csv instead; `archive`:
     rows (index, objective, measures...); `qd`: per metrics row (qd_score, max_fitness,
-    mean_fitness), a task with fitness."""
+    mean_fitness), a task with fitness; `wall`: each metrics row's wall seconds (default 0.1 per row)."""
     d = Path(root) / name / f"seed-{seed}"
     d.mkdir(parents=True)
     (d / "config.toml").write_text(
@@ -58,7 +58,7 @@ def write_run(root, name="my-env-decaying", seed=1, env="point-mass", rep="none"
         ratio = r[3] if len(r) > 3 else ""
         q = ",".join(map(str, qd[i])) if qd else ",,"
         it = iteration[loop] = iteration.get(loop, -1) + 1  # the iteration within its loop, as qdrun counts
-        lines.append(f"{loop},{it},{ev},{el},{el / cells},{q},{ratio},0,0,0,{0.1 * (i + 1)},0")
+        lines.append(f"{loop},{it},{ev},{el},{el / cells},{q},{ratio},0,0,0,{wall[i] if wall else 0.1 * (i + 1)},0")
     (d / "metrics.csv").write_text("\n".join(lines) + "\n")
     if archive is not None:
         dims = len(archive[0]) - 2 if archive else 2

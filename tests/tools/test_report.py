@@ -83,6 +83,23 @@ class Regenerate(unittest.TestCase):
         self.assertIn("| 50 000 | MAPE-Iso 20.00 (2) | PoMS 16.00 (3) | 25.0 % | MAPE-Iso 7.81 | PoMS 7.29 | 7.1 % | yes |",
                       text)
 
+    def test_episode_lengthening_per_algorithm(self):
+        out = fixtures.tmpdir(self) / "study"
+        # 20 evaluations per loop. PoMS: 0.2 s in loop 0, then 0.4 and 0.8 s: 2x and 4x loop 0's time per
+        # evaluation. MAPE-Iso: 0.2 s every loop, 1x. The mean over both runs: 1.5x and 2.5x.
+        for alg, wall in {"poms": [0.2, 0.6, 1.4], "iso": [0.2, 0.4, 0.6]}.items():
+            rep, mut = ALG_PAIRS[alg]
+            fixtures.write_run(out / "runs", name=f"striker-{alg}", seed=1, env="striker", rep=rep, mutator=mut,
+                               descriptor="striker-contacts", metrics=[(0, 20, 5), (1, 40, 9), (2, 60, 12)], wall=wall)
+        study.write(out, {"selection": {"environments": ["striker"], "algorithms": ["poms", "iso"], "seeds": "1",
+                                        "evaluations": 60},
+                          "header": {"date": "2026-01-01 00:00 UTC", "qdrun": "qdrun 9 (git x)", "machine": "M",
+                                     "hardware_threads": 2, "command": "share/qdreport -o REPORT_DIR"}})
+        text = regenerate(out).split("## Episode lengthening", 1)[1]
+        self.assertIn("| evaluations at its middle | 30 | 50 |\n| time per evaluation / loop 0's | 1.50 | 2.50 |\n"
+                      "| PoMS (1 run) | 2.00 | 4.00 |\n| MAPE-Iso (1 run) | 1.00 | 1.00 |\n", text)
+        self.assertIn("evaluations = [0, 30, 50]\noffspring_time = [1.0, 1.50, 2.50]\n", text)
+
     def test_a_run_short_of_the_reports_budget_is_not_complete(self):
         # A run complete at its own budget (20 evaluations) in a report of 40, as a run being extended.
         out = fixtures.tmpdir(self) / "study"

@@ -349,7 +349,7 @@ def lengthening(r):
     algs = tables.algorithms()
     lines = []
     for env in r.envs:
-        per_loop, middles, n = {}, {}, 0
+        per_loop, middles, n, by_alg = {}, {}, 0, {}
         for a in r.algs:
             if algs.is_sampler(a):  # random search: its episodes do not lengthen as the archive spreads
                 continue
@@ -358,9 +358,11 @@ def lengthening(r):
                 if not rates.get(0) or s["status"] != "complete":
                     continue
                 n += 1
+                mine = by_alg.setdefault(r.name(a), {})
                 for L, rate in rates.items():
                     if L >= 1:
                         per_loop.setdefault(L, []).append(rate / rates[0])
+                        mine.setdefault(L, []).append(rate / rates[0])
                         middles[L] = (int(ends[L - 1]["evaluations"]) + int(ends[L]["evaluations"])) // 2
         loops = [L for L in sorted(per_loop) if len(per_loop[L]) == n]
         if not loops:
@@ -370,13 +372,18 @@ def lengthening(r):
                      "The mean over the complete runs of the algorithms that breed from elites (random search left "
                      "out) of each loop's wall time per evaluation (training out) divided by the run's loop 0's. "
                      "An experiment file's `[cost]` table states this for `qdrun --dry-run` (docs/user-guide.md, "
-                     "\"How long will it take\"); the lines under each table are that table for these runs."]
+                     "\"How long will it take\"); the lines under each table are that table for these runs. "
+                     "Below the mean, each algorithm's own (episodes lengthen as far as its archive spreads)."]
         means = [sum(per_loop[L]) / n for L in loops]
         lines += ["", f"{env}, {n} runs:", "", "| loop | " + " | ".join(map(str, loops)) + " |",
                   "|---|" + "---|" * len(loops),
                   "| evaluations at its middle | " + " | ".join(str(middles[L]) for L in loops) + " |",
-                  "| time per evaluation / loop 0's | " + " | ".join(f"{m:.2f}" for m in means) + " |", "",
-                  "```toml", "[cost]",
+                  "| time per evaluation / loop 0's | " + " | ".join(f"{m:.2f}" for m in means) + " |"]
+        if len(by_alg) > 1:  # episodes lengthen by how far each algorithm's archive spreads
+            lines += [f"| {name} ({len(mine[loops[0]])} run{'s' if len(mine[loops[0]]) != 1 else ''}) | " +
+                      " | ".join(f"{sum(mine[L]) / len(mine[L]):.2f}" for L in loops) + " |"
+                      for name, mine in by_alg.items()]
+        lines += ["", "```toml", "[cost]",
                   "evaluations = [0, " + ", ".join(str(middles[L]) for L in loops) + "]",
                   "offspring_time = [1.0, " + ", ".join(f"{m:.2f}" for m in means) + "]", "```"]
     return lines
