@@ -345,7 +345,8 @@ def _workers(s):
 
 def lengthening(r):
     """Per environment: the breeding runs' time per evaluation in each loop against their loop 0's,
-    the quantity an experiment file's [cost] table states for qdrun --dry-run."""
+    the quantity an experiment file's [cost] table states for qdrun --dry-run; over the loops every
+    complete run has (complete at its own budget is enough: a run being extended is still a measurement)."""
     algs = tables.algorithms()
     lines = []
     for env in r.envs:
@@ -355,7 +356,8 @@ def lengthening(r):
                 continue
             for s in r.runs[(env, a)]:
                 rates, ends = s["loop_rates"], s["loop_ends"]
-                if not rates.get(0) or s["status"] != "complete":
+                # A run complete at its own budget counts for its loops, short of the report's or not.
+                if not rates.get(0) or not s["status"].startswith("complete"):
                     continue
                 n += 1
                 mine = by_alg.setdefault(r.name(a), {})
