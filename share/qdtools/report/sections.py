@@ -350,7 +350,7 @@ def lengthening(r):
     algs = tables.algorithms()
     lines = []
     for env in r.envs:
-        per_loop, middles, n, by_alg = {}, {}, 0, {}
+        middles, n, by_alg = {}, 0, {}
         for a in r.algs:
             if algs.is_sampler(a):  # random search: its episodes do not lengthen as the archive spreads
                 continue
@@ -363,9 +363,9 @@ def lengthening(r):
                 mine = by_alg.setdefault(r.name(a), {})
                 for L, rate in rates.items():
                     if L >= 1:
-                        per_loop.setdefault(L, []).append(rate / rates[0])
                         mine.setdefault(L, []).append(rate / rates[0])
                         middles[L] = (int(ends[L - 1]["evaluations"]) + int(ends[L]["evaluations"])) // 2
+        per_loop = {L: [v for mine in by_alg.values() for v in mine.get(L, [])] for L in middles}
         loops = [L for L in sorted(per_loop) if len(per_loop[L]) == n]
         if not loops:
             continue
