@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstring>
 #include <sstream>
 
 namespace qd::app {
@@ -97,7 +98,7 @@ void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& r
     training += e.training_seconds;
     // What priced the episodes: the run's own loops, or the pilot (whose offspring count only for
     // a run that breeds from elites), and the lengthening [cost] adds to a breeding run's.
-    char basis[256], growth[96] = "";
+    char basis[384], growth[96] = "";
     const runtime::CostEstimate::Lengthening& l = e.lengthening;
     if (l.first_loop <= l.last_loop)
       std::snprintf(growth, sizeof growth, "; [cost]: %s x%.2f to x%.2f over loops %d-%d",
@@ -115,6 +116,16 @@ void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& r
     else
       std::snprintf(basis, sizeof basis, "loop 0: %.2f ms/episode, %.0f of %d steps, |D| %zu",
                     1e3 * p.seconds_per_episode(), p.mean_steps, p.max_steps, p.loop0_archive);
+    // The dataset the training was priced on, where there is any.
+    if (e.training_seconds > 0) {
+      char rows[96];
+      if (e.dataset_rows_from_cost)
+        std::snprintf(rows, sizeof rows, "; |D| at the last fit %zu ([cost] cells)", e.dataset_rows_last);
+      else
+        std::snprintf(rows, sizeof rows, "; |D| at the last fit %zu (loop 0's x (1 + %.1f sqrt(loop)))",
+                      e.dataset_rows_last, runtime::kDatasetGrowth);
+      std::strncat(basis, rows, sizeof basis - std::strlen(basis) - 1);
+    }
     std::printf("  %-44s %8s core-h: %lld evaluations %s h, training %s h (%s)\n", r.label.c_str(),
                 hours(e.total_seconds()).c_str(), e.evaluations, hours(e.episode_seconds).c_str(),
                 hours(e.training_seconds).c_str(), basis);

@@ -87,10 +87,12 @@ class Regenerate(unittest.TestCase):
         out = fixtures.tmpdir(self) / "study"
         # 20 evaluations per loop. PoMS: 0.2 s in loop 0, then 0.4 and 0.8 s: 2x and 4x loop 0's time per
         # evaluation. MAPE-Iso: 0.2 s every loop, 1x. The mean over both runs: 1.5x and 2.5x.
-        for alg, wall in {"poms": [0.2, 0.6, 1.4], "iso": [0.2, 0.4, 0.6]}.items():
+        # Cells: PoMS 5, 9, 12 at the loops' ends, MAPE-Iso 5, 13, 20.
+        for alg, wall, elites in (("poms", [0.2, 0.6, 1.4], [5, 9, 12]), ("iso", [0.2, 0.4, 0.6], [5, 13, 20])):
             rep, mut = ALG_PAIRS[alg]
             fixtures.write_run(out / "runs", name=f"striker-{alg}", seed=1, env="striker", rep=rep, mutator=mut,
-                               descriptor="striker-contacts", metrics=[(0, 20, 5), (1, 40, 9), (2, 60, 12)], wall=wall)
+                               descriptor="striker-contacts", metrics=list(zip((0, 1, 2), (20, 40, 60), elites)),
+                               wall=wall)
         # The report's budget is beyond the runs' (runs being extended): they count for the loops they have.
         study.write(out, {"selection": {"environments": ["striker"], "algorithms": ["poms", "iso"], "seeds": "1",
                                         "evaluations": 100},
@@ -99,7 +101,14 @@ class Regenerate(unittest.TestCase):
         text = regenerate(out).split("## Episode lengthening", 1)[1]
         self.assertIn("| evaluations at its middle | 30 | 50 |\n| time per evaluation / loop 0's | 1.50 | 2.50 |\n"
                       "| PoMS (1 run) | 2.00 | 4.00 |\n| MAPE-Iso (1 run) | 1.00 | 1.00 |\n", text)
-        self.assertIn("evaluations = [0, 30, 50]\noffspring_time = [1.0, 1.50, 2.50]\n", text)
+        # Cells found by each loop's middle, PoMS (5 + 9) / 2 = 7 and (9 + 12) / 2 = 10.5, MAPE-Iso 9 and 16.5;
+        # their mean 8 and 13.5, rounded half up.
+        self.assertIn("evaluations = [0, 30, 50]\noffspring_time = [1.0, 1.50, 2.50]\ncells = [0, 8, 14]\n", text)
+        own = text.split("<details><summary>Each algorithm's own [cost] table</summary>", 1)[1].split("</details>")[0]
+        self.assertIn("PoMS:\n\n```toml\n[cost]\nevaluations = [0, 30, 50]\noffspring_time = [1.0, 2.00, 4.00]\n"
+                      "cells = [0, 7, 11]\n```", own)
+        self.assertIn("MAPE-Iso:\n\n```toml\n[cost]\nevaluations = [0, 30, 50]\noffspring_time = [1.0, 1.00, 1.00]\n"
+                      "cells = [0, 9, 17]\n```", own)
 
     def test_a_run_short_of_the_reports_budget_is_not_complete(self):
         # A run complete at its own budget (20 evaluations) in a report of 40, as a run being extended.

@@ -125,6 +125,21 @@ TEST(Config, AMalformedCostTableNamesTheKey) {
       std::string::npos);
   const std::string typo = error_of(std::string(kValid) + "\n[cost]\noffspring_times = [1.0]\n");
   EXPECT_NE(typo.find("unknown key 'offspring_times' in [cost]"), std::string::npos) << typo;
+  const std::string cells = error_of(std::string(kValid) + "\n[cost]\nevaluations = [0, 1000]\ncells = [10]\n");
+  EXPECT_NE(cells.find("cost.cells has 1 values for 2 cost.evaluations"), std::string::npos) << cells;
+  const std::string bare = error_of(std::string(kValid) + "\n[cost]\nevaluations = [0, 1000]\n");
+  EXPECT_NE(bare.find("give cost.offspring_time, cost.cells or both"), std::string::npos) << bare;
+  EXPECT_NE(error_of(std::string(kValid) + "\n[cost]\nevaluations = [0]\ncells = [-1]\n").find("out of range"),
+            std::string::npos);
+}
+
+TEST(Config, TheCostTableMayGiveCellsWithoutTimes) {
+  const CostModel m = read_cost_model(
+      Document::parse(std::string(kValid) + "\n[cost]\nevaluations = [0, 1000]\ncells = [0, 40]\n", "exp.toml"));
+  EXPECT_EQ(m.cells, (std::vector<double>{0, 40}));
+  EXPECT_TRUE(m.offspring_time.empty());
+  EXPECT_EQ(m.offspring_time_at(500), 1.0);  // episodes priced by the pilot's offspring
+  EXPECT_DOUBLE_EQ(m.cells_at(250), 10.0);
 }
 
 TEST(Config, UnknownComponentListsTheKnownOnes) {

@@ -225,8 +225,34 @@ TEST(CostEstimate, TrainingAddsTheModelsTimeForTheExpectedDatasetSizes) {
 TEST(CostEstimate, DatasetNeverOutgrowsTheGrid) {
   EpisodePilot p = known_pilot();
   p.loop0_archive = 40;
-  EXPECT_EQ(expected_dataset_rows(p, kCells, 0), 40u);
-  EXPECT_EQ(expected_dataset_rows(p, kCells, 100), static_cast<std::size_t>(kCells));
+  World w(true, 1);
+  EXPECT_EQ(expected_dataset_rows(w.s, w.cost, p, kCells, 0), 40u);
+  EXPECT_EQ(expected_dataset_rows(w.s, w.cost, p, kCells, 100), static_cast<std::size_t>(kCells));
+  w.cost.evaluations = {0, 10};
+  w.cost.cells = {0, 1e6};
+  EXPECT_EQ(expected_dataset_rows(w.s, w.cost, p, kCells, 1), static_cast<std::size_t>(kCells));
+}
+
+// World: loop 0 is 6 evaluations, loops 1 and 2 are 10 each, so they end at 16 and 26.
+TEST(CostEstimate, TheCostTablesCellsSizeEachFitAtItsLoopsEnd) {
+  World w(true, 1);
+  EXPECT_DOUBLE_EQ(loop_end_evaluations(w.s, 0), 6.0);
+  EXPECT_DOUBLE_EQ(loop_end_evaluations(w.s, 2), 26.0);
+  w.cost.evaluations = {0, 16, 36};
+  w.cost.cells = {0, 20, 40};
+  const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot());
+  // Loop 0's fit sees the pilot's archive (6); loop 1's the 20 cells found by evaluation 16; loop
+  // 2's 20 + (26 - 16) / (36 - 16) x 20 = 30.
+  ASSERT_EQ(w.model->asked.size(), 1u);
+  EXPECT_EQ(w.model->asked[0], (std::vector<std::size_t>{6, 20, 30}));
+  EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * (6 + 20 + 30));
+  EXPECT_EQ(e.dataset_rows_last, 30u);
+  EXPECT_TRUE(e.dataset_rows_from_cost);
+  // Cells alone do not lengthen episodes: the pilot's offspring price loops 1 and 2.
+  EXPECT_DOUBLE_EQ(e.episode_seconds, 6 * 0.020 + 20 * 0.060);
+  // Never below what loop 0 found.
+  w.cost.cells = {0, 1, 2};
+  EXPECT_EQ(expected_dataset_rows(w.s, w.cost, known_pilot(), kCells, 2), 6u);
 }
 
 TEST(CostEstimate, AResumedRunCountsOnlyTheLoopsLeft) {
@@ -234,7 +260,8 @@ TEST(CostEstimate, AResumedRunCountsOnlyTheLoopsLeft) {
   const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot(), 2);
   EXPECT_EQ(e.evaluations, 10);
   EXPECT_DOUBLE_EQ(e.episode_seconds, 10 * 0.060);
-  EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * static_cast<double>(expected_dataset_rows(known_pilot(), kCells, 2)));
+  EXPECT_DOUBLE_EQ(e.training_seconds,
+                   0.5 * static_cast<double>(expected_dataset_rows(w.s, w.cost, known_pilot(), kCells, 2)));
 }
 
 TEST(CostEstimate, AResumedRunsOwnRatePricesItsEvaluationsInsteadOfThePilot) {
@@ -242,7 +269,8 @@ TEST(CostEstimate, AResumedRunsOwnRatePricesItsEvaluationsInsteadOfThePilot) {
   const CostEstimate e = estimate_run_cost(w.s, w.cost, w.c, known_pilot(), 2, {0.5, 1});
   EXPECT_EQ(e.evaluations, 10);
   EXPECT_DOUBLE_EQ(e.episode_seconds, 10 * 0.5);
-  EXPECT_DOUBLE_EQ(e.training_seconds, 0.5 * static_cast<double>(expected_dataset_rows(known_pilot(), kCells, 2)));
+  EXPECT_DOUBLE_EQ(e.training_seconds,
+                   0.5 * static_cast<double>(expected_dataset_rows(w.s, w.cost, known_pilot(), kCells, 2)));
 }
 
 TEST(CostEstimate, ARepresentationWithoutFitTimeEstimateAddsNoTraining) {

@@ -138,14 +138,23 @@ MeasuredRate measured_rate(std::istream& in, int iterations) {
   return out;
 }
 
-std::size_t expected_dataset_rows(const EpisodePilot& pilot, std::int64_t cells, int loop) {
-  const double rows = static_cast<double>(pilot.loop0_archive) * (1.0 + kDatasetGrowth * std::sqrt(loop));
-  return static_cast<std::size_t>(std::min(rows, static_cast<double>(std::max<std::int64_t>(cells, 0))));
+std::size_t expected_dataset_rows(const ExperimentSettings& s, const CostModel& cost, const EpisodePilot& pilot,
+                                  std::int64_t cells, int loop) {
+  const auto d0 = static_cast<double>(pilot.loop0_archive);
+  // The fit after loop `loop` sees every cell found by its end.
+  const double found = loop == 0            ? d0
+                       : cost.cells.empty() ? d0 * (1.0 + kDatasetGrowth * std::sqrt(loop))
+                                            : std::max(d0, cost.cells_at(loop_end_evaluations(s, loop)));
+  return static_cast<std::size_t>(std::min(found, static_cast<double>(std::max<std::int64_t>(cells, 0))));
 }
 
 double loop_midpoint_evaluations(const ExperimentSettings& s, int loop) {
   const double per_loop = static_cast<double>(s.iterations) * s.batch;
   return s.initial_samples + (loop - 1) * per_loop + per_loop / 2;
+}
+
+double loop_end_evaluations(const ExperimentSettings& s, int loop) {
+  return s.initial_samples + static_cast<double>(loop) * s.iterations * s.batch;
 }
 
 CostEstimate estimate_run_cost(const ExperimentSettings& s, const CostModel& cost, Components& c,
@@ -155,7 +164,7 @@ CostEstimate estimate_run_cost(const ExperimentSettings& s, const CostModel& cos
   // [cost], measured on long runs, states a breeding run's time per evaluation as a multiple of
   // loop 0's; without it, the pilot's offspring price those loops. A resumed run's own rate grows
   // as [cost] does from the loop it was measured in.
-  const bool lengthens = c.mutator->uses_parents() && !cost.evaluations.empty() && (!own_rate || measured.loop >= 1);
+  const bool lengthens = c.mutator->uses_parents() && !cost.offspring_time.empty() && (!own_rate || measured.loop >= 1);
   auto factor = [&](int loop) { return cost.offspring_time_at(loop_midpoint_evaluations(s, loop)); };
   const double base_factor = own_rate && lengthens ? factor(measured.loop) : 1.0;
   const double later_base = own_rate                    ? measured.seconds_per_evaluation
@@ -179,8 +188,10 @@ CostEstimate estimate_run_cost(const ExperimentSettings& s, const CostModel& cos
       e.evaluations += n;
       e.episode_seconds += static_cast<double>(n) * seconds_per_evaluation(loop);
     }
-    rows.push_back(expected_dataset_rows(pilot, c.grid.cells, loop));
+    rows.push_back(expected_dataset_rows(s, cost, pilot, c.grid.cells, loop));
   }
+  e.dataset_rows_last = rows.empty() ? 0 : rows.back();
+  e.dataset_rows_from_cost = !cost.cells.empty();
   // A representation that does not implement FitTimeEstimate costs nothing beyond the episodes.
   const auto* timing = dynamic_cast<const FitTimeEstimate*>(c.representation.get());
   if (c.representation->latent_size() == 0 || rows.empty() || !timing) return e;

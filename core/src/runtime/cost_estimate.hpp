@@ -16,9 +16,11 @@
 //    middle evaluation. A resumed run that has completed a loop past 0 is priced at its own
 //    measured rate instead (measured_rate), grown as [cost] grows from that loop on, so re-running
 //    --dry-run on a sweep in progress tracks what it has measured.
-//  * Training. D holds the loop-0 archive after loop 0 (the pilot counts it), D0, and then about
-//    D0 (1 + kDatasetGrowth sqrt(loop)), up to the grid's size; the representation times its own
-//    fit on data of those sizes (Representation::estimate_fit_seconds).
+//  * Training. D holds the loop-0 archive after loop 0 (the pilot counts it), D0, and then one
+//    policy per cell found by the end of each loop: [cost]'s `cells` at that loop's last evaluation
+//    where the file states them (measured on long runs, as offspring_time), otherwise about
+//    D0 (1 + kDatasetGrowth sqrt(loop)); never beyond the grid's size. The representation times its
+//    own fit on data of those sizes (Representation::estimate_fit_seconds).
 #pragma once
 
 #include "runtime/components.hpp"
@@ -33,7 +35,9 @@ namespace qd::runtime {
 
 // The step size of the pilot's offspring, theta + kPilotSigma N(0, I) (the reference's MAPE-Iso).
 inline constexpr double kPilotSigma = 0.1;
-// |D| at loop l is about D0 (1 + kDatasetGrowth sqrt(l)) (fitted on Walker runs: 1.1 to 1.5).
+// Without [cost] cells, |D| at loop l is about D0 (1 + kDatasetGrowth sqrt(l)): fitted on the
+// Walker's loop 0 of 2000 (1.1 to 1.5); where loop 0 is small (the reference Walker's 200) archives
+// outgrow it many times over, hence [cost] cells.
 inline constexpr double kDatasetGrowth = 1.2;
 
 struct EpisodePilot {
@@ -70,6 +74,8 @@ struct CostEstimate {
     int first_loop = 1, last_loop = 0;
     double from = 1.0, to = 1.0;
   } lengthening;
+  std::size_t dataset_rows_last = 0;    // |D| at the last loop's fit
+  bool dataset_rows_from_cost = false;  // sized by [cost] cells, not by the growth rule
   double total_seconds() const { return episode_seconds + training_seconds; }
 };
 
@@ -93,7 +99,11 @@ CostEstimate estimate_run_cost(const ExperimentSettings& settings, const CostMod
 // The evaluations done at the middle of loop `loop` >= 1 (where [cost] is read for it).
 double loop_midpoint_evaluations(const ExperimentSettings& settings, int loop);
 
-// The dataset size the model assumes at loop `loop`'s fit.
-std::size_t expected_dataset_rows(const EpisodePilot& pilot, std::int64_t cells, int loop);
+// The evaluations done when loop `loop` ends (loop 0: the initial samples).
+double loop_end_evaluations(const ExperimentSettings& settings, int loop);
+
+// The dataset size the model assumes at the fit after loop `loop`, on a grid of `cells` cells.
+std::size_t expected_dataset_rows(const ExperimentSettings& settings, const CostModel& cost, const EpisodePilot& pilot,
+                                  std::int64_t cells, int loop);
 
 }  // namespace qd::runtime

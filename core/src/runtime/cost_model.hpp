@@ -18,7 +18,13 @@ struct CostModel {
   // empty. Episodes lengthen as an archive reaches cells that only long episodes reach; qdreport
   // measures this from finished runs ("Episode lengthening").
   std::vector<double> evaluations, offspring_time;
+  // Distinct cells found once `evaluations[i]` evaluations are done, linear in between, the end
+  // values held; empty when not given. A representation trains on one policy per cell ever found,
+  // so this sizes its dataset; how far an archive spreads depends on the algorithm and the
+  // environment, which no pilot of loop 0 can see (qdreport measures it with offspring_time).
+  std::vector<double> cells;
   double offspring_time_at(double evaluations_done) const;
+  double cells_at(double evaluations_done) const;
 };
 
 // [cost] of `doc`, checked (unknown keys, ranges, one time per entry, increasing evaluations);

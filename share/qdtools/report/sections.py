@@ -345,12 +345,13 @@ def _workers(s):
 
 def lengthening(r):
     """Per environment: the breeding runs' time per evaluation in each loop against their loop 0's,
-    the quantity an experiment file's [cost] table states for qdrun --dry-run; over the loops every
-    complete run has (complete at its own budget is enough: a run being extended is still a measurement)."""
+    and the cells they found by each loop's middle, the quantities an experiment file's [cost] table
+    states for qdrun --dry-run; over the loops every complete run has (complete at its own budget is
+    enough: a run being extended is still a measurement)."""
     algs = tables.algorithms()
     lines = []
     for env in r.envs:
-        middles, n, by_alg = {}, 0, {}
+        middles, n, by_alg, cells_by_alg = {}, 0, {}, {}
         for a in r.algs:
             if algs.is_sampler(a):  # random search: its episodes do not lengthen as the archive spreads
                 continue
@@ -360,11 +361,12 @@ def lengthening(r):
                 if not rates.get(0) or not s["status"].startswith("complete"):
                     continue
                 n += 1
-                mine = by_alg.setdefault(r.name(a), {})
+                mine, my_cells = by_alg.setdefault(r.name(a), {}), cells_by_alg.setdefault(r.name(a), {})
                 for L, rate in rates.items():
                     if L >= 1:
                         mine.setdefault(L, []).append(rate / rates[0])
                         middles[L] = (int(ends[L - 1]["evaluations"]) + int(ends[L]["evaluations"])) // 2
+                        my_cells.setdefault(L, []).append((ends[L - 1]["elites"] + ends[L]["elites"]) / 2)
         per_loop = {L: [v for mine in by_alg.values() for v in mine.get(L, [])] for L in middles}
         loops = [L for L in sorted(per_loop) if len(per_loop[L]) == n]
         if not loops:
@@ -374,9 +376,21 @@ def lengthening(r):
                      "The mean over the complete runs of the algorithms that breed from elites (random search left "
                      "out) of each loop's wall time per evaluation (training out) divided by the run's loop 0's. "
                      "An experiment file's `[cost]` table states this for `qdrun --dry-run` (docs/user-guide.md, "
-                     "\"How long will it take\"); the lines under each table are that table for these runs. "
-                     "Below the mean, each algorithm's own (episodes lengthen as far as its archive spreads)."]
+                     "\"How long will it take\"); the lines under each table are that table for these runs, with "
+                     "`cells`, the mean of the cells found by each loop's middle (they size a representation's "
+                     "training data). Below the mean, each algorithm's own (episodes lengthen as far as its archive "
+                     "spreads)."]
         means = [sum(per_loop[L]) / n for L in loops]
+
+        def cost_table(times, cells):
+            return ["```toml", "[cost]", "evaluations = [0, " + ", ".join(str(middles[L]) for L in loops) + "]",
+                    "offspring_time = [1.0, " + ", ".join(f"{t:.2f}" for t in times) + "]",
+                    "cells = [0, " + ", ".join(str(int(c + 0.5)) for c in cells) + "]", "```"]
+
+        def mean_cells(tables, L):
+            values = [v for t in tables for v in t.get(L, [])]
+            return sum(values) / len(values)
+
         lines += ["", f"{env}, {n} runs:", "", "| loop | " + " | ".join(map(str, loops)) + " |",
                   "|---|" + "---|" * len(loops),
                   "| evaluations at its middle | " + " | ".join(str(middles[L]) for L in loops) + " |",
@@ -385,9 +399,13 @@ def lengthening(r):
             lines += [f"| {name} ({len(mine[loops[0]])} run{'s' if len(mine[loops[0]]) != 1 else ''}) | " +
                       " | ".join(f"{sum(mine[L]) / len(mine[L]):.2f}" for L in loops) + " |"
                       for name, mine in by_alg.items()]
-        lines += ["", "```toml", "[cost]",
-                  "evaluations = [0, " + ", ".join(str(middles[L]) for L in loops) + "]",
-                  "offspring_time = [1.0, " + ", ".join(f"{m:.2f}" for m in means) + "]", "```"]
+        lines += [""] + cost_table(means, [mean_cells(cells_by_alg.values(), L) for L in loops])
+        if len(by_alg) > 1:  # what a file of one algorithm states: its own lengthening and spread
+            lines += ["", "<details><summary>Each algorithm's own [cost] table</summary>", ""]
+            for name, mine in by_alg.items():
+                lines += [f"{name}:", ""] + cost_table([sum(mine[L]) / len(mine[L]) for L in loops],
+                                                       [mean_cells([cells_by_alg[name]], L) for L in loops]) + [""]
+            lines.append("</details>")
     return lines
 
 
