@@ -116,6 +116,14 @@ void print_cost_estimate(const SweepOptions& o, const std::vector<PlannedRun>& r
     else
       std::snprintf(basis, sizeof basis, "loop 0: %.2f ms/episode, %.0f of %d steps, |D| %zu",
                     1e3 * p.seconds_per_episode(), p.mean_steps, p.max_steps, p.loop0_archive);
+    // The pilot's worlds are fresh; state a run's persistent worlds build up over it (the
+    // reference's ghost balls made a 102 000-evaluation run about 8 times longer) is not priced.
+    if (const int worlds = c.environment->info().persistent_worlds; worlds > 0) {
+      char unpriced[160];
+      std::snprintf(unpriced, sizeof unpriced,
+                    "; not priced: what its %d persistent worlds accumulate (the pilot's worlds are fresh)", worlds);
+      std::strncat(basis, unpriced, sizeof basis - std::strlen(basis) - 1);
+    }
     // The dataset the training was priced on, where there is any.
     if (e.training_seconds > 0) {
       char rows[96];

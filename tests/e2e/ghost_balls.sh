@@ -26,6 +26,13 @@ same_results "$(run_dir "$out/one")" "$(run_dir "$out/split")"
 # The ghosts matter: the same seed without them gives another archive.
 "$qdrun" "$out/ghosts.toml" -o "$out/none" --quiet --workers 2 --set environment.ghost_balls=0
 ! cmp -s "$(run_dir "$out/one")/archive.csv" "$(run_dir "$out/none")/archive.csv" || { echo "ghost balls changed nothing"; exit 1; }
+# --dry-run's pilot runs in fresh worlds and says what it leaves out.
+# (Its output is read whole first: grep -q would close the pipe early, and pipefail would fail on SIGPIPE.)
+dry=$("$qdrun" "$out/ghosts.toml" -o "$out/dry" --dry-run)
+grep -q "not priced: what its 4 persistent worlds accumulate" <<< "$dry" ||
+  { echo "--dry-run does not say it leaves the ghost balls out: $dry"; exit 1; }
+dry=$("$qdrun" "$out/ghosts.toml" -o "$out/dry" --dry-run --set environment.ghost_balls=0)
+! grep -q "not priced" <<< "$dry" || { echo "--dry-run without ghost balls says something is not priced: $dry"; exit 1; }
 set +e
 msg=$("$qdrun" "$out/ghosts.toml" -o "$out/procs" --quiet --backend processes 2>&1)
 code=$?

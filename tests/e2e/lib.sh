@@ -56,7 +56,9 @@ wait_for_file() {
 rank_pid() {
   local mpirun_pid=$1 rank=$2 c
   for c in $(pgrep -P "$mpirun_pid"); do
-    tr '\0' '\n' < "/proc/$c/environ" 2> /dev/null | grep -qx "OMPI_COMM_WORLD_RANK=$rank" && { echo "$c"; return 0; }
+    # grep reads all (no -q): an early exit would SIGPIPE tr, and pipefail would read a match as none.
+    tr '\0' '\n' < "/proc/$c/environ" 2> /dev/null | grep -x "OMPI_COMM_WORLD_RANK=$rank" > /dev/null &&
+      { echo "$c"; return 0; }
   done
   return 1
 }
