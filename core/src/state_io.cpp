@@ -23,9 +23,8 @@ void write_string(std::ostream& out, const std::string& s) {
 std::string read_string(std::istream& in) {
   const auto n = read<std::uint64_t>(in);
   if (n > (1u << 30)) throw StateError("state blob has an implausible string size");
-  std::string s(static_cast<std::size_t>(n), '\0');
-  if (n && !in.read(s.data(), static_cast<std::streamsize>(n))) throw StateError("state blob ends early");
-  return s;
+  const std::vector<char> chars = detail::read_elements<char>(in, n);
+  return {chars.begin(), chars.end()};
 }
 
 }  // namespace qd::state

@@ -643,7 +643,8 @@ void BallWorld::load(std::istream& in) {
   auto world = std::make_unique<b2World>(gravity());
   add_terrain(*world, flat_heights(), kKickerFriction);
   std::vector<b2Body*> balls;
-  balls.reserve(static_cast<std::size_t>(n));
+  // A count beyond the stream's balls fails on reading them, not on an allocation sized by it.
+  balls.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(n, std::uint64_t{1} << 20)));
   for (std::uint64_t k = 0; k < n; ++k) {
     float f[6];
     for (float& x : f) x = state::read<float>(in);

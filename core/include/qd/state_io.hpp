@@ -7,6 +7,7 @@
 #include <qd/export.hpp>
 #include <qd/types.hpp>
 
+#include <algorithm>
 #include <cstdint>
 #include <istream>
 #include <ostream>
@@ -45,15 +46,31 @@ void write_vector(std::ostream& out, const std::vector<T>& v) {
     out.write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(v.size() * sizeof(T)));
 }
 
+namespace detail {
+// n elements, allocated as they arrive (16 MiB at a time): a count the blob does not hold fails as
+// "ends early" after at most one chunk, never as an allocation sized by a corrupt count.
+template <class T>
+std::vector<T> read_elements(std::istream& in, std::uint64_t n) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  static_assert(sizeof(T) <= (std::size_t{1} << 24));
+  constexpr std::uint64_t kChunk = (std::uint64_t{1} << 24) / sizeof(T);
+  std::vector<T> v;
+  for (std::uint64_t done = 0; done < n;) {
+    const std::uint64_t k = n - done < kChunk ? n - done : kChunk;
+    v.resize(static_cast<std::size_t>(done + k));
+    if (!in.read(reinterpret_cast<char*>(v.data() + done), static_cast<std::streamsize>(k * sizeof(T))))
+      throw StateError("state blob ends early");
+    done += k;
+  }
+  return v;
+}
+}  // namespace detail
+
 template <class T>
 std::vector<T> read_vector(std::istream& in) {
-  static_assert(std::is_trivially_copyable_v<T>);
   const auto n = read<std::uint64_t>(in);
   if (n > (std::uint64_t{1} << 40) / sizeof(T)) throw StateError("state blob has an implausible vector size");
-  std::vector<T> v(static_cast<std::size_t>(n));
-  if (n && !in.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(n * sizeof(T))))
-    throw StateError("state blob ends early");
-  return v;
+  return detail::read_elements<T>(in, n);
 }
 
 template <class Derived>
@@ -72,11 +89,12 @@ void read_matrix(std::istream& in, Eigen::PlainObjectBase<Derived>& m) {
   const auto rows = read<std::int64_t>(in);
   const auto cols = read<std::int64_t>(in);
   const auto width = read<std::uint32_t>(in);
-  if (rows < 0 || cols < 0 || width != sizeof(Scalar) || rows * cols > (std::int64_t{1} << 36))
+  // (rows > limit / cols, not rows * cols > limit: a corrupt header must not overflow the product.)
+  if (rows < 0 || cols < 0 || width != sizeof(Scalar) || (cols > 0 && rows > (std::int64_t{1} << 36) / cols))
     throw StateError("state blob has a malformed matrix header");
+  const std::vector<Scalar> data = detail::read_elements<Scalar>(in, static_cast<std::uint64_t>(rows * cols));
   m.resize(rows, cols);
-  if (m.size() && !in.read(reinterpret_cast<char*>(m.data()), static_cast<std::streamsize>(m.size() * sizeof(Scalar))))
-    throw StateError("state blob ends early");
+  std::copy(data.begin(), data.end(), m.data());  // in storage order, as written
 }
 
 }  // namespace qd::state

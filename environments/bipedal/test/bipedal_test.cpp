@@ -827,6 +827,19 @@ TEST(BipedalGhostBalls, AReloadedWorldContinuesAsAResumedOne) {
   EXPECT_EQ(s1.str(), s2.str());
   std::istringstream junk("not a world");
   EXPECT_THROW(resumed.load(junk), qd::StateError);
+  // A state that claims 2^32 balls and holds four ends early, before anything of its size is allocated.
+  std::string claims = bytes;
+  const std::uint64_t huge = std::uint64_t{1} << 32;
+  claims.replace(4, sizeof huge, reinterpret_cast<const char*>(&huge), sizeof huge);
+  std::istringstream lying(claims);
+  const std::size_t before = resumed.balls();
+  try {
+    resumed.load(lying);
+    ADD_FAILURE() << "a state with 4 of 2^32 balls loaded";
+  } catch (const qd::StateError& e) {
+    EXPECT_STREQ(e.what(), "state blob ends early");
+  }
+  EXPECT_EQ(resumed.balls(), before);  // a failed load leaves the world as it was
 }
 
 // The environment: ghost_balls = N is N persistent worlds for the core; world -1 (replays, the
