@@ -189,7 +189,18 @@ class Parts(unittest.TestCase):
         per_run, total = sweep.read_estimate(out / "estimate.txt")
         self.assertEqual(per_run, {"striker-iso/seed-1": {"core_h": 0.25, "episodes_h": 0.25},
                                    "striker-poms/seed-1": {"core_h": 0.30, "episodes_h": 0.20}})
-        self.assertEqual(total, {"core_h": 0.5, "jobs": 2, "cores": 2, "wall_h": 0.25})
+        self.assertEqual(total, {"core_h": 0.5, "jobs": 2, "cores": 2, "wall_h": 0.25, "sweeps": 1})
+        # A study made by two sweeps of different runs keeps both dry-runs: the totals add up.
+        with open(out / "estimate.txt", "a") as f:
+            f.write("\n# the second sweep\nestimate (...):\n  striker-iso/seed-2   0.20 core-h: 22000 evaluations ...\n"
+                    "sweep: estimated 0.20 core-hours (episodes 0.2); on this machine, 1 at a time on 2 cores: about "
+                    "0.20 hours\n")
+        per_run, total = sweep.read_estimate(out / "estimate.txt")
+        self.assertEqual(per_run["striker-iso/seed-2"], {"core_h": 0.20, "episodes_h": 0.20})
+        self.assertEqual(len(per_run), 3)
+        self.assertAlmostEqual(total["core_h"], 0.70)
+        self.assertAlmostEqual(total["wall_h"], 0.45)
+        self.assertEqual((total["jobs"], total["cores"], total["sweeps"]), (None, None, 2))
         sweep.log_invocation(out / "invocations.csv", "T1", "", "running", "")
         sweep.log_invocation(out / "invocations.csv", "T1", "12.5", "0", "3 runs: 3 finished, 0 failed")
         self.assertEqual(sweep.read_invocations(out / "invocations.csv"),

@@ -314,13 +314,16 @@ def cost(r):
         lines.append(f"All {compared} compared runs: estimate {core_sum:.2f} core-h, {est_sum:.2f} h of run wall time "
                      f"with their workers; measured {wall_sum:.2f} h of run wall time (ratio {ratio(wall_sum, est_sum)}).")
     if total:
-        text = (f"The whole sweep: estimate {total['core_h']:.2f} core-hours, about {total['wall_h']:.2f} h of wall "
-                f"time with {total['jobs']} at a time on {total['cores']} cores")
-        if compared and compared == len(per_run):
+        sweeps = total["sweeps"]
+        text = ("The whole sweep" + (f" ({sweeps} sweeps one after another, each of its own runs: their dry-runs "
+                                     "add up)" if sweeps > 1 else "") +
+                f": estimate {total['core_h']:.2f} core-hours, about {total['wall_h']:.2f} h of wall time" +
+                (f" with {total['jobs']} at a time on {total['cores']} cores" if total["jobs"] else ""))
+        if compared and compared == len(per_run) and total["jobs"]:
             jobs = total["jobs"]
             text += (f"; measured: the runs' wall times add to {wall_sum:.2f} h, {wall_sum / jobs:.2f} h with {jobs} at "
                      f"a time (ratio {ratio(wall_sum / jobs, total['wall_h'])})")
-        elif compared:
+        elif compared and compared < len(per_run):
             text += f" ({len(per_run) - compared} of its {len(per_run)} runs not complete yet)"
         lines.append(text + ".")
     if invocations:

@@ -52,8 +52,12 @@ def save_estimate(out, sweep, shown):
 def read_estimate(path):
     """The per-run estimates and the sweep's totals of a saved `qdrun --dry-run` (estimate.txt): per
     run its core-hours and the part of them that is episodes (the rest is training, which a run's
-    worker count does not divide); an older line without the parts counts as episodes only."""
-    per_run, total = {}, None
+    worker count does not divide); an older line without the parts counts as episodes only.
+    A study made by several sweeps (one after another, each of different runs) keeps each sweep's
+    dry-run in the same file: the totals add up, `sweeps` counts them, and `jobs` is None when they
+    ran a different number of runs at a time. A later estimate of the same run replaces the earlier
+    one (comment out the sweep line of a dry-run whose runs an earlier one already counted)."""
+    per_run, totals = {}, []
     for line in Path(path).read_text().splitlines():
         m = re.match(r"^  (\S+/seed-\d+) +([0-9.]+) core-h:(?: \d+ evaluations ([0-9.]+) h, training [0-9.]+ h)?", line)
         if m:
@@ -62,8 +66,13 @@ def read_estimate(path):
         m = re.match(r"^sweep: estimated ([0-9.]+) core-hours .*?(\d+) at a time on (\d+) cores?: about ([0-9.]+) hours",
                      line)
         if m:
-            total = {"core_h": float(m[1]), "jobs": int(m[2]), "cores": int(m[3]), "wall_h": float(m[4])}
-    return per_run, total
+            totals.append({"core_h": float(m[1]), "jobs": int(m[2]), "cores": int(m[3]), "wall_h": float(m[4])})
+    if not totals:
+        return per_run, None
+    same = len({(t["jobs"], t["cores"]) for t in totals}) == 1
+    return per_run, {"core_h": sum(t["core_h"] for t in totals), "wall_h": sum(t["wall_h"] for t in totals),
+                     "jobs": totals[0]["jobs"] if same else None, "cores": totals[0]["cores"] if same else None,
+                     "sweeps": len(totals)}
 
 
 def read_invocations(path):
