@@ -129,6 +129,22 @@ class Figures(unittest.TestCase):
             self.assertEqual(fig["axes"][0]["ylabel"], "main_1 (column 2 of the trace's main table)")
             self.assertGreaterEqual(min(fig["axes"][0]["xticks"], fig["axes"][0]["yticks"]), 2)
 
+    def test_trajectories_say_how_many_elites_replay_into_their_own_cell(self):
+        # An environment with persistent worlds stores elites where a fresh world may not put them.
+        root = fixtures.tmpdir(self)
+        fixtures.write_run(root / "runs", grid=GRID, archive=[(7, 1.0, 1.2, 0.7), (9, 3.0, 1.8, 0.1)],
+                           experiment_file="/x/decaying-iso.toml")
+        data = root / "figures" / "data" / "traces-point-mass-decaying-iso-seed-1.csv"
+        data.parent.mkdir(parents=True)
+        data.write_text("cell,landed,status,row,main_0,main_1\n7,7,ok,0,0.1,0.2\n7,7,ok,1,0.2,0.3\n"
+                        "9,4,ok,0,0.5,0.1\n9,4,ok,1,0.6,0.2\n")
+        with contextlib.redirect_stdout(io.StringIO()) as said:
+            plot_cli.plot([root / "runs"], root / "figures", ["traces"], formats=("png",), dump=True, qdrun="/bin/true")
+        moved = "in a fresh world 1 of 2 elites replay into their own cell: these are the replays' paths"
+        self.assertIn(moved, said.getvalue())
+        fig = dump(root / "figures", "traces-point-mass-decaying-iso")["figure"]
+        self.assertEqual(fig["legends"], ["one path per elite (2), coloured by its final main_0", moved])
+
     def test_loss_curves_label_several_ticks_whatever_their_range(self):
         for low, high in ((100.0, 120.0), (80.0, 600.0), (1e-3, 50.0)):
             root = fixtures.tmpdir(self)

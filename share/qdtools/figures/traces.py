@@ -92,6 +92,14 @@ def plot(out, run, qdrun):
         ax.set_ylabel(axis_label(names[0], 0))
     ax.grid(alpha=0.3)
     matches = sum(1 for rs in paths.values() if rs[0]["landed"] == rs[0]["cell"])
+    if matches < len(paths):
+        # A replay runs in a fresh world: an environment whose episodes depend on what earlier ones
+        # left behind (persistent worlds, such as the Kicker's ghost balls) stored some elites in a
+        # cell a fresh world does not give them. Say so on the figure, which draws the replays.
+        moved = f"in a fresh world {matches} of {len(paths)} elites replay into their own cell: these are the replays' paths"
+        print(f"qdplot: {run.path}: {moved}")
+        handles.append(Line2D([], [], linestyle="none"))
+        labels.append(moved)
     ax.set_title(run_title(run, f"{what}s of {len(paths)} elites" + ("" if style else " (the trace's main columns)")),
                  fontsize=10)
     bar = fig.colorbar(matplotlib.cm.ScalarMappable(norm=norm, cmap="viridis"), ax=ax, shrink=0.8)
