@@ -524,11 +524,17 @@ class Network final : public Model {
                            (1.0 - std::pow(hyper_.beta1, t))),
             static_cast<S>(hyper_.epsilon)};
   }
+  // An IEEE square root, never Eigen's float `sqrt()`: with EIGEN_FAST_MATH (its default) that is
+  // rsqrtps plus a Newton step on AVX2, and rsqrtps is an approximation each CPU vendor rounds its
+  // own way, so the same x86-64-v3 binary trained to other bits on AMD and Intel CPUs.
+  struct ExactSqrt {
+    S operator()(S x) const { return std::sqrt(x); }
+  };
   template <class Block, class Grad>
   static void adam(const AdamStep& k, Block theta, Block m, Block v, const Grad& g) {
     m.array() = k.b1 * m.array() + (S(1) - k.b1) * g.array();
     v.array() = k.b2 * v.array() + (S(1) - k.b2) * g.array().square();
-    theta.array() -= k.lr_t * m.array() / (v.array().sqrt() + k.eps);
+    theta.array() -= k.lr_t * m.array() / (v.array().unaryExpr(ExactSqrt{}) + k.eps);
   }
 
   Hyper hyper_;

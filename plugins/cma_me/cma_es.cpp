@@ -67,8 +67,11 @@ void CmaEs::update_eigensystem() {
   const Eigen::SelfAdjointEigenSolver<Matrix> eig(sym);
   eigenvalues_ = eig.eigenvalues().cwiseAbs();
   const Matrix& b = eig.eigenvectors();
-  transform_ = b * eigenvalues_.cwiseSqrt().asDiagonal();
-  invsqrt_ = b * eigenvalues_.cwiseSqrt().cwiseInverse().asDiagonal() * b.transpose();
+  // IEEE square roots: Eigen's vectorised sqrt is rsqrt14 plus Newton steps on AVX-512, an
+  // approximation whose last bits are the CPU's, not the standard's (tests/golden/exact_arithmetic.sh).
+  const Vector root = eigenvalues_.unaryExpr([](double x) { return std::sqrt(x); });
+  transform_ = b * root.asDiagonal();
+  invsqrt_ = b * root.cwiseInverse().asDiagonal() * b.transpose();
   eigen_evaluations_ = evaluations_;
 }
 
