@@ -7,7 +7,7 @@
 # Every other floating-point instruction is exactly rounded, so without these a build gives the same
 # bits on every CPU that runs it.
 #
-#   tests/golden/exact_arithmetic.sh BUILD_DIR    scans BUILD_DIR/bin/qdrun, lib/*.so*, lib/qd/plugins/*.so
+#   tests/golden/exact_arithmetic.sh BUILD_DIR    scans BUILD_DIR/bin/qdrun, lib/libqd_core.so, lib/qd/plugins/*.so
 set -euo pipefail
 build=$1
 if ! command -v objdump > /dev/null; then
