@@ -17,7 +17,7 @@ from pathlib import Path
 
 from .figures.output import MANIFEST, compact_png, read_manifest
 from .report import study, summary
-from .runs import Run, csv_header, group, is_run_dir, median_run, open_text
+from .runs import Run, csv_header, group, is_run_dir, locate, median_run, open_text
 
 KEEP = ("config.toml", "provenance.toml", "grid.toml", "status", "training.csv", "pca.csv", "summary.toml")
 COMPRESS = ("metrics.csv",)  # and centroids.csv beside a kept archive (slim_run)
@@ -132,34 +132,46 @@ def every_kth_row(k):
     return lines
 
 
+def thinned_by(values):
+    """The k of a study's copy whose metrics.csv already keeps every k-th iteration (its summary.toml
+    says so), else 1."""
+    m = re.match(r"every (\d+)th iteration", str(values.get("metrics_rows_kept", "")))
+    return int(m.group(1)) if m else 1
+
+
 def slim_run(src, dst, replacements=(), rows=None, archive=True):
     """Copies what a study keeps of the run directory src to dst, with summary.toml holding the
     quantities the report needs from files the study does not keep (report/summary.py, KEPT).
     `rows`: a metrics.csv of more rows keeps every k-th (the fewest k that leaves at most `rows`)
     and each loop's last; the full run's mixing ratio over its last loop is then kept in
-    summary.toml. `archive`: whether to keep the final archive (and a CVT archive's centroids)."""
+    summary.toml. `archive`: whether to keep the final archive (and a CVT archive's centroids).
+    src may itself be a study's copy (metrics.csv.gz, archive.csv.gz, summary.toml): its files are
+    kept, the quantities of its full run stay those its summary.toml holds, and thinning it again
+    keeps exactly the rows that thinning its full run would."""
     dst.mkdir(parents=True, exist_ok=True)
     run = Run(src)
-    values = summary.kept(run) if summary.KEPT else {}
-    k = math.ceil(len(run.metrics) / rows) if rows and len(run.metrics) > rows else 1
-    if k > 1:  # quantities of every row, before the copy keeps fewer
-        values.update(summary.mixing_last_loop(run), metrics_rows_of_the_full_run=len(run.metrics),
-                      metrics_rows_kept=f"every {k}th iteration and every loop's last")
+    values = summary.kept(run)  # of a study's copy: its summary.toml, the full run's
+    done = thinned_by(values)
+    step = math.ceil(len(run.metrics) / rows) if rows and len(run.metrics) > rows else 1
+    k = done * step  # a multiple of the copy's k: the rows of the full run thinned by k, all still here
+    if step > 1:  # quantities of every row, before the copy keeps fewer
+        thinned = dict(summary.mixing_last_loop(run), metrics_rows_of_the_full_run=len(run.metrics))
+        values = {**thinned, **values, "metrics_rows_kept": f"every {k}th iteration and every loop's last"}
         values = {key: v for key, v in values.items() if not (isinstance(v, float) and math.isnan(v))}
     if values:
         (dst / summary.SUMMARY).write_text("# From the full run, which kept files this copy does not "
                                             "(report/summary.py, KEPT)\n" +
                                             "".join(f"{key} = {study.toml_value(v)}\n" for key, v in values.items()))
     for name in KEEP:
-        if (src / name).exists():
+        if (src / name).exists() and name != summary.SUMMARY:  # summary.toml: written above
             text = (src / name).read_text()
             (dst / name).write_text(machine_paths(text, replacements) if name.endswith(".toml") else text)
-    for name in COMPRESS:
-        if (src / name).exists():
-            gzip_copy(src / name, dst / f"{name}.gz", every_kth_row(k) if name == "metrics.csv" and k > 1 else None)
-    if archive and (src / "archive.csv").exists():
+    for name in COMPRESS:  # open_text reads NAME or a copy's NAME.gz
+        if locate(src / name):
+            gzip_copy(src / name, dst / f"{name}.gz", every_kth_row(k) if name == "metrics.csv" and step > 1 else None)
+    if archive and locate(src / "archive.csv"):
         gzip_copy(src / "archive.csv", dst / "archive.csv.gz", without_parameters)
-        if (src / "centroids.csv").exists():  # a CVT archive's cells: its map needs them
+        if locate(src / "centroids.csv"):  # a CVT archive's cells: its map needs them
             gzip_copy(src / "centroids.csv", dst / "centroids.csv.gz")
 
 

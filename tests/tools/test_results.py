@@ -106,6 +106,32 @@ class Slim(unittest.TestCase):
                          (full["elites"], full["evaluations"], full["loop_rates"]))  # loop ends are all kept
         self.assertEqual(runs.read_toml(root / "slim" / "summary.toml")["metrics_rows_of_the_full_run"], 15)
 
+    def test_a_studys_copy_keeps_its_files_and_thins_as_its_full_run_would(self):
+        # qdresults over a study (say, to keep fewer rows of its older runs) once dropped the copies'
+        # metrics and archives, which it looked for only uncompressed.
+        root = fixtures.tmpdir(self)
+        rows = [(0, 10, 1, "")] + [(L, 10 + 10 * (12 * (L - 1) + i + 1), 2 + i, 0.1 * i) for L in (1, 2) for i in range(12)]
+        full = fixtures.write_run(root / "full", metrics=rows, archive=[(1, 0.5, 0.1, 0.2), (4, 0.7, 0.3, 0.4)])
+        results.slim_run(full, root / "copy")
+        results.slim_run(root / "copy", root / "copy-of-copy")
+        for name in ("archive.csv.gz", "metrics.csv.gz", "summary.toml", "config.toml"):
+            self.assertEqual((root / "copy-of-copy" / name).read_bytes(), (root / "copy" / name).read_bytes(), name)
+        # Thinned in two steps (every 2nd, then to at most 8 rows) = thinned once by the product.
+        results.slim_run(full, root / "by-2", rows=13)
+        results.slim_run(root / "by-2", root / "by-2-then-2", rows=8)
+        results.slim_run(full, root / "by-4", rows=7)
+        kept = runs.Run(root / "by-2-then-2")
+        self.assertEqual([(m["loop"], m["iteration"]) for m in kept.metrics],
+                         [(0, 0), (1, 3), (1, 7), (1, 11), (2, 3), (2, 7), (2, 11)])
+        for name in ("metrics.csv.gz", "archive.csv.gz"):
+            self.assertEqual((root / "by-2-then-2" / name).read_bytes(), (root / "by-4" / name).read_bytes(), name)
+        told = runs.read_toml(root / "by-2-then-2" / "summary.toml")
+        self.assertEqual(told, runs.read_toml(root / "by-4" / "summary.toml"))
+        self.assertEqual(told["metrics_rows_of_the_full_run"], 25)  # the full run's, not the copy's 13
+        self.assertEqual(told["metrics_rows_kept"], "every 4th iteration and every loop's last")
+        self.assertAlmostEqual(told["mixing"], 0.55)  # the full last loop's mean (0.0 .. 1.1)
+        self.assertAlmostEqual(told["parameter_norm_median"], 0.5 ** 0.5)  # needs parameters no copy has
+
     def test_archives_only_for_the_maps(self):
         report = fixtures.tmpdir(self) / "report"
         for seed, elites in ((1, 9), (2, 5), (3, 7)):  # the median final coverage: seed 3
