@@ -1,10 +1,11 @@
 """Studies in results/: what a study keeps of its runs, and the check that a repository commits
 nothing bulky (results/README.md states the rule).
 
-A study keeps, per run, what a reader needs to check a claim: config.toml, provenance.toml,
-grid.toml, status, training.csv (and pca.csv), metrics.csv as metrics.csv.gz, and the final
-archive without its parameters as archive.csv.gz (index, objective, measures_*, recn_error) with,
-for a CVT, centroids.csv as centroids.csv.gz. Never the per-epoch losses, the parameters,
+A study keeps, per run, what a reader needs to check a claim: config.toml, provenance.toml (and
+each resumed session's provenance-resume-loop-L.toml), grid.toml, status, training.csv (and
+pca.csv), metrics.csv as metrics.csv.gz, and the final archive without its parameters as
+archive.csv.gz (index, objective, measures_*, recn_error) with, for a CVT, centroids.csv as
+centroids.csv.gz. Never the per-epoch losses, the parameters,
 checkpoints, datasets or snapshots."""
 import gzip
 import json
@@ -17,7 +18,7 @@ from pathlib import Path
 
 from .figures.output import MANIFEST, compact_png, read_manifest
 from .report import study, summary
-from .runs import Run, csv_header, group, is_run_dir, locate, median_run, open_text
+from .runs import Run, csv_header, group, is_run_dir, locate, median_run, open_text, session_provenance
 
 KEEP = ("config.toml", "provenance.toml", "grid.toml", "status", "training.csv", "pca.csv", "summary.toml")
 COMPRESS = ("metrics.csv",)  # and centroids.csv beside a kept archive (slim_run)
@@ -162,7 +163,7 @@ def slim_run(src, dst, replacements=(), rows=None, archive=True):
         (dst / summary.SUMMARY).write_text("# From the full run, which kept files this copy does not "
                                             "(report/summary.py, KEPT)\n" +
                                             "".join(f"{key} = {study.toml_value(v)}\n" for key, v in values.items()))
-    for name in KEEP:
+    for name in [*KEEP, *(p.name for p in session_provenance(src))]:
         if (src / name).exists() and name != summary.SUMMARY:  # summary.toml: written above
             text = (src / name).read_text()
             (dst / name).write_text(machine_paths(text, replacements) if name.endswith(".toml") else text)

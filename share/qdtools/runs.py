@@ -4,6 +4,7 @@ results/ keep their larger files compressed."""
 import gzip
 import io
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -184,6 +185,13 @@ def read_archive(run_dir):
     return Archive(cells, objective, values)
 
 
+def session_provenance(run_dir):
+    """The provenance files of a run's resumed sessions (provenance-resume-loop-L.toml), by L."""
+    found = [(int(m.group(1)), p) for p in Path(run_dir).glob("provenance-resume-loop-*.toml")
+             if (m := re.fullmatch(r"provenance-resume-loop-(\d+)\.toml", p.name))]
+    return [p for _, p in sorted(found)]
+
+
 class Run:
     """One run directory, read lazily where reading is expensive (metrics are read at once: every
     figure and table needs them)."""
@@ -198,6 +206,9 @@ class Run:
             self.provenance = read_toml(self.path / "provenance.toml")
         except FileNotFoundError:
             self.provenance = {}
+        # Each session's provenance: another revision or CPU may have made the later loops.
+        self.sessions = ([self.provenance] if self.provenance else []) + \
+            [read_toml(p) for p in session_provenance(self.path)]
         algs, envs = tables.algorithms(), tables.environments()
         env = self.config["environment"]
         self.env_type = env["type"]

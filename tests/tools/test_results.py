@@ -132,6 +132,24 @@ class Slim(unittest.TestCase):
         self.assertAlmostEqual(told["mixing"], 0.55)  # the full last loop's mean (0.0 .. 1.1)
         self.assertAlmostEqual(told["parameter_norm_median"], 0.5 ** 0.5)  # needs parameters no copy has
 
+    def test_a_resumed_runs_sessions_are_kept_and_named(self):
+        root = fixtures.tmpdir(self)
+        run = fixtures.write_run(root / "full", archive=[(1, 0.5, 0.1, 0.2)])
+        full = summary.summarise(runs.Run(run))
+        self.assertEqual((full["git"], full["built_for"]), ("abc", "CPU, -march=x"))
+        # Loops 12 on by another revision on another CPU, loops 3-11 by the same build (no new name).
+        (run / "provenance-resume-loop-12.toml").write_text(f'git_revision = "def"\ncpu = "Other CPU"\n'
+                                                            f'instruction_set = "-march=y"\ncommand = "{run}/x"\n')
+        (run / "provenance-resume-loop-3.toml").write_text((run / "provenance.toml").read_text())
+        (run / "provenance-resume-loop-x.toml").write_text("not = 'a session'\n")
+        results.slim_run(run, root / "slim", replacements=[(str(run), "REPORT_DIR")])
+        self.assertEqual(sorted(p.name for p in (root / "slim").glob("provenance*")),
+                         ["provenance-resume-loop-12.toml", "provenance-resume-loop-3.toml", "provenance.toml"])
+        self.assertEqual(runs.read_toml(root / "slim" / "provenance-resume-loop-12.toml")["command"], "REPORT_DIR/x")
+        slim = summary.summarise(runs.Run(root / "slim"))
+        self.assertEqual(slim["git"], "abc then def")
+        self.assertEqual(slim["built_for"], "CPU, -march=x then Other CPU, -march=y")
+
     def test_archives_only_for_the_maps(self):
         report = fixtures.tmpdir(self) / "report"
         for seed, elites in ((1, 9), (2, 5), (3, 7)):  # the median final coverage: seed 3

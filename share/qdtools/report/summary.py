@@ -19,6 +19,12 @@ from ..runs import locate, open_text, read_csv, read_toml
 SUMMARY = "summary.toml"  # in a study's run directory: the KEPT quantities of the full run
 
 
+def each_session(run, describe):
+    """`describe(provenance)` of each session that made the run, the distinct ones in order, joined
+    by "then" (one value for a run made in one go or resumed by the same build on the same CPU)."""
+    return " then ".join(dict.fromkeys(describe(p) for p in run.sessions)) or describe({})
+
+
 def core_fields(run):
     last = run.metrics[-1] if run.metrics else {}
     wall, train = last.get("wall_seconds", math.nan), last.get("train_seconds", math.nan)
@@ -32,9 +38,9 @@ def core_fields(run):
         "workers": prov.get("workers", "?"), "status": run.status or "?",
         "autoencoder": run.representation == "autoencoder", "epoch_cap": run.epoch_cap,
         "index_space": run.index_space, "index_space_label": run.index_space_label,
-        "git": prov.get("git_revision", "?"),
+        "git": each_session(run, lambda p: str(p.get("git_revision", "?"))),
         # Floating-point results depend on the instruction set the run's qdrun was built for.
-        "built_for": f"{prov.get('cpu', '?')}, {prov.get('instruction_set', '?')}",
+        "built_for": each_session(run, lambda p: f"{p.get('cpu', '?')}, {p.get('instruction_set', '?')}"),
     }
 
 
