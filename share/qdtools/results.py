@@ -5,8 +5,7 @@ A study keeps, per run, what a reader needs to check a claim: config.toml, prove
 each resumed session's provenance-resume-loop-L.toml), grid.toml, status, training.csv (and
 pca.csv), metrics.csv as metrics.csv.gz, and the final archive without its parameters as
 archive.csv.gz (index, objective, measures_*, recn_error) with, for a CVT, centroids.csv as
-centroids.csv.gz. Never the per-epoch losses, the parameters,
-checkpoints, datasets or snapshots."""
+centroids.csv.gz. Never the per-epoch losses, the parameters, checkpoints, datasets or snapshots."""
 import gzip
 import json
 import math
