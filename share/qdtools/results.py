@@ -19,7 +19,7 @@ from .figures.output import MANIFEST, compact_png, read_manifest
 from .report import study, summary
 from .runs import Run, csv_header, group, is_run_dir, locate, median_run, open_text, session_provenance
 
-KEEP = ("config.toml", "provenance.toml", "grid.toml", "status", "training.csv", "pca.csv", "summary.toml")
+KEEP = ("config.toml", "provenance.toml", "grid.toml", "status", "training.csv", "pca.csv")  # summary.toml: slim_run
 COMPRESS = ("metrics.csv",)  # and centroids.csv beside a kept archive (slim_run)
 # Figures a study's files cannot give again (they need parameters, checkpoints or per-epoch logs):
 # copied as drawn. Coverage and maps are drawn again from the kept files (qdreport --regenerate).
@@ -163,7 +163,7 @@ def slim_run(src, dst, replacements=(), rows=None, archive=True):
                                             "(report/summary.py, KEPT)\n" +
                                             "".join(f"{key} = {study.toml_value(v)}\n" for key, v in values.items()))
     for name in [*KEEP, *(p.name for p in session_provenance(src))]:
-        if (src / name).exists() and name != summary.SUMMARY:  # summary.toml: written above
+        if (src / name).exists():
             text = (src / name).read_text()
             (dst / name).write_text(machine_paths(text, replacements) if name.endswith(".toml") else text)
     for name in COMPRESS:  # open_text reads NAME or a copy's NAME.gz
