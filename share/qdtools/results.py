@@ -35,7 +35,7 @@ BULKY = [
     (re.compile(r"(^|/)figures/data/"), "replayed trajectories or latent codes (qdplot's data/)"),
     (re.compile(r"(^|/)(lock|qdrun\.log|sweep\.log)$"), "a run's lock or log"),
 ]
-BUDGET_RESULTS = 20 * 1000 * 1000   # bytes tracked under results/ (10 MB until the lp benchmark, 13, 15 and 18 MB in issue 36)
+BUDGET_RESULTS = 21 * 1000 * 1000   # bytes tracked under results/ (10 MB until the lp benchmark, 13, 15 and 18 MB in issue 36)
 BUDGET_SOURCE = 4 * 1000 * 1000     # bytes tracked outside results/
 LARGEST_PLAIN = 64 * 1000           # a larger text file under results/ is stored gzip-compressed
 
