@@ -82,6 +82,16 @@ class Regenerate(unittest.TestCase):
                       text)
         self.assertIn("| 50 000 | MAPE-Iso 20.00 (2) | PoMS 16.00 (3) | 25.0 % | MAPE-Iso 7.81 | PoMS 7.29 | 7.1 % | yes |",
                       text)
+        # Seed by seed: at 20 000 PoMS leads in seeds 1 and 2 (10 / 8, 12 / 9), where the paper's leader,
+        # MAPE-Iso, places second; seed 3 has PoMS alone, so no row. At 50 000 MAPE-Iso leads in both.
+        self.assertIn("| at | seed | PoMS | MAPE-Iso | leader | lead | the paper's leader's place |", text)
+        self.assertIn("| 20 000 | seed 1 | 10.00 | 8.00 | PoMS | 25.0 % over MAPE-Iso | 2 of 2 |\n"
+                      "| 20 000 | seed 2 | 12.00 | 9.00 | PoMS | 33.3 % over MAPE-Iso | 2 of 2 |\n"
+                      "| 20 000 | the paper's curves | 5.51 | 6.11 | MAPE-Iso | 10.9 % over PoMS | 1 of 2 |\n"
+                      "| 50 000 | seed 1 | 15.00 | 20.00 | MAPE-Iso | 33.3 % over PoMS | 1 of 2 |\n"
+                      "| 50 000 | seed 2 | 16.00 | 30.00 | MAPE-Iso | 87.5 % over PoMS | 1 of 2 |\n"
+                      "| 50 000 | the paper's curves | 7.29 | 7.81 | MAPE-Iso | 7.1 % over PoMS | 1 of 2 |\n", text)
+        self.assertNotIn("| seed 3 |", text)
 
     def test_episode_lengthening_per_algorithm(self):
         out = fixtures.tmpdir(self) / "study"
