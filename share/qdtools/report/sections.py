@@ -437,6 +437,7 @@ def paper(r):
         if not figure or len(variants) != 1:
             continue
         rows, used, both = [], set(), {}
+        by_seed, papers = {}, {}  # {evaluations: {seed: {name: coverage}}}, {evaluations: {name: paper's}}
         for a in r.algs:
             cells = []
             for e in PAPER_AT:
@@ -446,7 +447,10 @@ def paper(r):
                     c = coverage_at(s, e, of) if of else None
                     if c is not None:
                         ours.append(c)
+                        by_seed.setdefault(e, {}).setdefault(s["seed"], {})[r.name(a)] = c
                 theirs = tables.paper_value(figure["figure"], r.name(a), e)
+                if theirs:
+                    papers.setdefault(e, {})[r.name(a)] = theirs
                 if ours and theirs:
                     used.add(e)
                     med = stats.nearest(ours, 50)
@@ -477,7 +481,7 @@ def paper(r):
         lines += [f"| {name} | " + " | ".join(c for c, e in zip(cells, PAPER_AT) if e in used) + " |"
                   for name, cells in rows]
         lines += leaders(both)
-        lines += leaders_by_seed(r, env, figure, used)
+        lines += leaders_by_seed([r.name(a) for a in r.algs], used, by_seed, papers)
     return lines
 
 
@@ -506,11 +510,10 @@ def leaders(both):
     return lines
 
 
-def leaders_by_seed(r, env, figure, budgets):
+def leaders_by_seed(names, budgets, by_seed, papers):
     """The leader seed by seed at each budget, beside the paper's curves: medians over unequal numbers
-    of seeds can hide that one algorithm leads in every seed, or in none."""
-    names = [r.name(a) for a in r.algs]
-    seeds = sorted({s["seed"] for a in r.algs for s in r.runs[(env, a)]})
+    of seeds can hide that one algorithm leads in every seed, or in none. `by_seed`: {evaluations:
+    {seed: {name: coverage}}}; `papers`: {evaluations: {name: the paper's coverage}}."""
 
     def row(at, label, values, paper_leader):
         if len(values) < 2:
@@ -524,22 +527,13 @@ def leaders_by_seed(r, env, figure, budgets):
 
     rows = []
     for e in budgets:
-        theirs = {n: v for n in names if (v := tables.paper_value(figure["figure"], n, e))}
+        theirs = papers.get(e, {})
         paper_leader = max(theirs, key=theirs.get) if theirs else None
         at = f"{e:,}".replace(",", " ")
-        here = []
-        for seed in seeds:
-            ours = {}
-            for a in r.algs:
-                for s in r.runs[(env, a)]:
-                    of = s["index_space"] if figure["percent_of"] == "index_space" else s["cells"]
-                    c = coverage_at(s, e, of) if of and s["seed"] == seed else None
-                    if c is not None:
-                        ours[r.name(a)] = c
-            here.append(row(at, f"seed {seed}", ours, paper_leader))
-        here = [x for x in here if x]
-        if here:
-            rows += here + [x for x in [row(at, "the paper's curves", theirs, paper_leader)] if x]
+        here = [row(at, f"seed {seed}", ours, paper_leader) for seed, ours in sorted(by_seed.get(e, {}).items())]
+        if any(here):
+            rows += here + [row(at, "the paper's curves", theirs, paper_leader)]
+    rows = [x for x in rows if x]
     if not rows:
         return []
     return ["", "Seed by seed, the same coverage (-: that run stopped before the budget), the leader's lead over the "
